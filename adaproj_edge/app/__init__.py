@@ -1,0 +1,1 @@
+"""The device runtime: states, button, motion, re-estimation, scheduling."""

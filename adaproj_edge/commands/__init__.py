@@ -1,0 +1,15 @@
+"""Sub-commands of ``adaproj``: one module each, each with ``register(subparsers)``.
+
+To add a command, write ``adaproj_edge/commands/<name>.py`` with a ``register``
+function that adds its parser and sets ``run`` (``args -> int``), then list it below.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from typing import Any
+
+Register = Callable[["argparse._SubParsersAction[Any]"], None]
+
+REGISTRY: list[Register] = []

@@ -1,0 +1,1 @@
+"""Content: images, user masks, saliency and the content map the warp weighs."""

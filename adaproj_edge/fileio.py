@@ -1,0 +1,129 @@
+"""Durable file writes and checked image reads.
+
+Nothing written to storage is ever half-written: every write goes to a temporary file
+in the same directory, is fsynced, renamed into place, and the directory is fsynced.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.errors import ImageError
+
+MAX_IMAGE_PIXELS = 40_000_000
+
+
+def fsync_dir(directory: Path) -> None:
+    """Make a rename in ``directory`` durable (no-op where directories cannot be opened)."""
+    try:
+        dfd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(dfd)
+    except OSError:
+        pass
+    finally:
+        os.close(dfd)
+
+
+def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], Any]) -> None:
+    """Call ``write(f)`` on a temporary file, then fsync and rename it to ``path``."""
+    path = Path(path)
+    directory = path.parent
+    directory.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    fsync_dir(directory)
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+    atomic_write(path, lambda f: f.write(data))
+
+
+def atomic_savez(path: str | os.PathLike[str], **arrays: Any) -> None:
+    """Write a compressed ``.npz`` atomically."""
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def write_png(path: str | os.PathLike[str], image: NDArray[Any]) -> None:
+    """Write an image (gray or BGR, uint8) as PNG atomically."""
+    ok, enc = cv2.imencode(".png", np.ascontiguousarray(image))
+    if not ok:
+        raise ImageError(f"cannot encode image of shape {image.shape} as PNG")
+    atomic_write_bytes(path, enc.tobytes())
+
+
+def decode_image(data: bytes, what: str, *, gray: bool = False) -> NDArray[np.uint8]:
+    """Decode PNG/JPEG bytes into uint8 BGR (or gray), refusing decompression bombs."""
+    arr = np.frombuffer(data, dtype=np.uint8)
+    if arr.size == 0:
+        raise ImageError(f"{what} is empty")
+    # Read the header first, so a bomb is refused before its pixels are allocated.
+    size = _header_size(data)
+    if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
+        raise ImageError(
+            f"{what} is {size[0]}x{size[1]} pixels, more than the {MAX_IMAGE_PIXELS} allowed"
+        )
+    flags = cv2.IMREAD_GRAYSCALE if gray else cv2.IMREAD_COLOR
+    img = cv2.imdecode(arr, flags)
+    if img is None:
+        raise ImageError(f"{what} is not a readable image (PNG or JPEG expected)")
+    if img.shape[0] < 2 or img.shape[1] < 2:
+        raise ImageError(f"{what} is only {img.shape[1]}x{img.shape[0]} pixels")
+    if img.shape[0] * img.shape[1] > MAX_IMAGE_PIXELS:
+        raise ImageError(f"{what} has more than {MAX_IMAGE_PIXELS} pixels")
+    return np.asarray(img, dtype=np.uint8)
+
+
+def read_image(path: str | os.PathLike[str], *, gray: bool = False) -> NDArray[np.uint8]:
+    """Read an image file with a clear error for every way it can fail."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise ImageError(f"image not found: {path}") from None
+    except IsADirectoryError:
+        raise ImageError(f"{path} is a directory, not an image") from None
+    except OSError as e:
+        raise ImageError(f"cannot read {path}: {e.strerror}") from None
+    return decode_image(data, str(path), gray=gray)
+
+
+def _header_size(data: bytes) -> tuple[int, int] | None:
+    """(width, height) from a PNG or JPEG header, None if it cannot be told cheaply."""
+    if data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 24:
+        return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+    if data[:2] == b"\xff\xd8":
+        i = 2
+        while i + 9 < len(data):
+            if data[i] != 0xFF:
+                return None
+            marker = data[i + 1]
+            seg = int.from_bytes(data[i + 2 : i + 4], "big")
+            if marker in (0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD):
+                h = int.from_bytes(data[i + 5 : i + 7], "big")
+                w = int.from_bytes(data[i + 7 : i + 9], "big")
+                return w, h
+            i += 2 + seg
+    return None

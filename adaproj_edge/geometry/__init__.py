@@ -1,0 +1,1 @@
+"""Pure geometry: projector model, surfaces, triangles, inscribed rectangles."""

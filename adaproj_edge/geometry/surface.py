@@ -1,0 +1,172 @@
+"""The Surface: the projector-space point map (DESIGN.md, "Surface").
+
+For each projector pixel (or each node of a regular lattice over the projector frame)
+the 3D point in frame P where that pixel's ray meets the surface, NaN where it meets
+nothing. File: ``.npz`` with ``points`` (H, W, 3) float32, ``K`` (3, 3) float64 and
+``meta`` (a JSON string).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.errors import SurfaceError
+from adaproj_edge.fileio import atomic_savez
+from adaproj_edge.geometry.projector import FloatArray, Projector
+
+MIN_VALID_FRACTION = 0.05
+
+
+@dataclass(frozen=True)
+class Surface:
+    """A point map in frame P.
+
+    Parameters
+    ----------
+    points : (h, w, 3) float array
+        Points in metres, NaN where the ray meets nothing. When ``(h, w)`` differs
+        from the projector resolution the nodes form a regular lattice whose corners
+        are the corner pixel centres of the frame.
+    projector : Projector
+        Intrinsics and resolution of the projector frame.
+    meta : dict
+        Free-form description (name of an analytic surface, source, ...).
+    """
+
+    points: NDArray[np.float32]
+    projector: Projector
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        pts = np.asarray(self.points)
+        if pts.ndim != 3 or pts.shape[2] != 3 or pts.shape[0] < 2 or pts.shape[1] < 2:
+            raise SurfaceError(f"surface points must have shape (H, W, 3), got {pts.shape}")
+        pts = pts.astype(np.float32, copy=False)
+        bad = ~np.all(np.isfinite(pts), axis=2)
+        behind = np.zeros_like(bad)
+        behind[~bad] = pts[~bad][:, 2] <= 0.0
+        if np.any(behind):
+            pts = pts.copy()
+            bad |= behind
+        if np.any(bad):
+            pts = pts.copy()
+            pts[bad] = np.nan
+        object.__setattr__(self, "points", pts)
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def shape(self) -> tuple[int, int]:
+        return int(self.points.shape[0]), int(self.points.shape[1])
+
+    @property
+    def valid(self) -> NDArray[np.bool_]:
+        """(h, w) mask of nodes whose ray meets the surface."""
+        return np.asarray(np.isfinite(self.points[..., 2]))
+
+    @property
+    def valid_fraction(self) -> float:
+        return float(np.mean(self.valid))
+
+    def lattice_scale(self) -> tuple[float, float]:
+        """Projector pixels per lattice step along x and y."""
+        h, w = self.shape
+        return (self.projector.width - 1) / (w - 1), (self.projector.height - 1) / (h - 1)
+
+    def depth_at(self, uv: FloatArray) -> FloatArray:
+        """Depth (z in frame P) at projector pixel coordinates ``uv`` (..., 2).
+
+        Bilinear in the lattice, using only valid neighbours; NaN where the nearest
+        node is invalid or ``uv`` is outside the frame.
+        """
+        uv = np.asarray(uv, dtype=np.float64)
+        sx, sy = self.lattice_scale()
+        h, w = self.shape
+        gx = uv[..., 0] / sx
+        gy = uv[..., 1] / sy
+        inside = (gx >= -0.5) & (gx <= w - 0.5) & (gy >= -0.5) & (gy <= h - 0.5)
+        gx = np.clip(gx, 0.0, w - 1.0)
+        gy = np.clip(gy, 0.0, h - 1.0)
+        x0 = np.minimum(np.floor(gx).astype(np.intp), w - 2)
+        y0 = np.minimum(np.floor(gy).astype(np.intp), h - 2)
+        fx = gx - x0
+        fy = gy - y0
+        z = self.points[..., 2].astype(np.float64)
+        num = np.zeros(gx.shape)
+        den = np.zeros(gx.shape)
+        for dy, dx, wgt in (
+            (0, 0, (1 - fx) * (1 - fy)),
+            (0, 1, fx * (1 - fy)),
+            (1, 0, (1 - fx) * fy),
+            (1, 1, fx * fy),
+        ):
+            zz = z[y0 + dy, x0 + dx]
+            ok = np.isfinite(zz) & (wgt > 1e-9)
+            num += np.where(ok, zz * wgt, 0.0)
+            den += np.where(ok, wgt, 0.0)
+        nearest = z[np.rint(gy).astype(np.intp), np.rint(gx).astype(np.intp)]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out = num / den
+        out[~inside | ~np.isfinite(nearest) | (den <= 0)] = np.nan
+        return out
+
+    def points_at(self, uv: FloatArray) -> FloatArray:
+        """3D points (..., 3) on the rays of pixels ``uv`` (..., 2); NaN where none."""
+        return self.projector.rays(uv) * self.depth_at(uv)[..., None]
+
+    def dense(self) -> Surface:
+        """This surface resampled at every projector pixel."""
+        p = self.projector
+        if self.shape == (p.height, p.width):
+            return self
+        pts = self.points_at(p.pixel_grid()).astype(np.float32)
+        return Surface(pts, p, dict(self.meta))
+
+    # ------------------------------------------------------------------ files
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the ``.npz`` file atomically (temporary file, fsync, rename)."""
+        meta = dict(self.meta)
+        meta.update(width=self.projector.width, height=self.projector.height)
+        atomic_savez(
+            Path(path), points=self.points, K=self.projector.K, meta=np.array(json.dumps(meta))
+        )
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Surface:
+        """Read and validate a Surface file."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                points = np.asarray(f["points"])
+                K = np.asarray(f["K"], dtype=np.float64)
+                meta = json.loads(str(f["meta"])) if "meta" in f else {}
+        except FileNotFoundError:
+            raise SurfaceError(f"surface file not found: {path}") from None
+        except KeyError as e:
+            raise SurfaceError(f"surface file {path} has no {e.args[0]!r} array") from None
+        except (OSError, ValueError) as e:
+            raise SurfaceError(f"cannot read surface file {path}: {e}") from None
+        if not isinstance(meta, dict):
+            raise SurfaceError(f"surface file {path}: meta must be a JSON object")
+        if points.ndim != 3 or points.shape[-1] != 3:
+            raise SurfaceError(f"surface file {path}: points must be (H, W, 3), got {points.shape}")
+        try:
+            width = int(meta.get("width") or points.shape[1])
+            height = int(meta.get("height") or points.shape[0])
+        except (TypeError, ValueError):
+            raise SurfaceError(f"surface file {path}: meta width/height are not numbers") from None
+        return cls(points, Projector(K, width, height), meta)
+
+    def check_usable(self, min_fraction: float = MIN_VALID_FRACTION) -> None:
+        """Raise :class:`SurfaceError` when too little of the frame meets the surface."""
+        if self.valid_fraction < min_fraction:
+            raise SurfaceError(
+                f"only {100 * self.valid_fraction:.1f} % of the projector frame meets the "
+                f"surface (at least {100 * min_fraction:.0f} % is needed)"
+            )

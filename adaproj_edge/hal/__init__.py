@@ -1,0 +1,1 @@
+"""Hardware-abstraction layer: one typing.Protocol per device, real and replay side by side."""

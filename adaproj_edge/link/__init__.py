@@ -1,0 +1,1 @@
+"""The serial link: SMP (MCUmgr) server, the adaproj command group, the content store."""

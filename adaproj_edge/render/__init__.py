@@ -1,0 +1,1 @@
+"""Rendering: warp mesh -> remap maps -> projector frame; the viewer simulator."""

@@ -1,0 +1,1 @@
+"""Recorded sessions: MCAP recorder and reader, replay clock."""

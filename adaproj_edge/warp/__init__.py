@@ -1,0 +1,1 @@
+"""The warp engine: energy terms, sparse solver, content-free and content-aware warps."""
