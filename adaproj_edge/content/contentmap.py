@@ -28,5 +28,7 @@ def combine(
     for m in maps:
         if m.shape != (h, w):
             raise InputError(f"content map of shape {m.shape} does not match the content {w}x{h}")
-    out = np.maximum.reduce([np.asarray(m, dtype=np.float32) for m in maps])
+    out: ContentMap = np.asarray(maps[0], dtype=np.float32)
+    for m in maps[1:]:
+        out = np.maximum(out, np.asarray(m, dtype=np.float32))
     return np.clip(np.nan_to_num(out, nan=0.0), 0.0, 1.0).astype(np.float32)
