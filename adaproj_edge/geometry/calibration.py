@@ -1,0 +1,208 @@
+"""Device calibration: projector intrinsics, depth camera model, depth -> projector and
+IMU -> projector transforms.
+
+The file format (``hw/calibration/<board>.toml``, and the JSON attachment
+``calibration.json`` of every session) holds the same fields::
+
+    format = "adaproj-calibration/1"
+    [projector]            # frame P, OpenCV convention, pixel centres at integers
+    width = 1280
+    height = 800
+    K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
+    [depth]                # frame D, the depth-aligned OAK-D camera (read from the
+    width = 640            # device on the board; stored in sessions)
+    height = 400
+    K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
+    baseline_m = 0.075     # stereo baseline, sets the depth noise model
+    [extrinsics]
+    T_P_D = [[...], [...], [...], [0, 0, 0, 1]]   # 4x4, maps points in D to P, metres
+    R_P_I = [[...], [...], [...]]                 # 3x3, rotates IMU vectors into P
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from adaproj_edge.errors import InputError
+from adaproj_edge.geometry.projector import FloatArray, Projector
+
+FORMAT = "adaproj-calibration/1"
+
+
+@dataclass(frozen=True)
+class DepthCameraModel:
+    """Pinhole model of the depth camera D.
+
+    Parameters
+    ----------
+    K : (3, 3) float array
+        Intrinsics at ``width`` x ``height``.
+    width, height : int
+        Depth image size in pixels.
+    baseline_m : float
+        Stereo baseline in metres (sets the disparity <-> depth relation).
+    """
+
+    K: FloatArray
+    width: int = 640
+    height: int = 400
+    baseline_m: float = 0.075
+
+    def __post_init__(self) -> None:
+        K = _matrix(self.K, (3, 3), "depth K")
+        if K[0, 0] <= 0 or K[1, 1] <= 0:
+            raise InputError("depth intrinsics must have positive focal lengths")
+        if self.width < 2 or self.height < 2 or self.baseline_m <= 0:
+            raise InputError("depth camera size and baseline must be positive")
+        object.__setattr__(self, "K", K)
+
+    @classmethod
+    def oak_d(cls, width: int = 640, height: int = 400) -> DepthCameraModel:
+        """Nominal OAK-D mono camera (OV9282, ~72 deg horizontal FOV, 7.5 cm baseline)."""
+        f = 0.689 * width
+        K = np.array([[f, 0.0, (width - 1) / 2], [0.0, f, (height - 1) / 2], [0.0, 0.0, 1.0]])
+        return cls(K=K, width=width, height=height, baseline_m=0.075)
+
+    @property
+    def focal(self) -> float:
+        return float(self.K[0, 0])
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Everything needed to turn a depth frame into a Surface in frame P.
+
+    Parameters
+    ----------
+    projector : Projector
+    depth : DepthCameraModel
+    T_P_D : (4, 4) float array
+        Rigid transform mapping points in D to P.
+    R_P_I : (3, 3) float array
+        Rotation taking IMU-frame vectors to P.
+    """
+
+    projector: Projector
+    depth: DepthCameraModel
+    T_P_D: FloatArray
+    R_P_I: FloatArray
+
+    def __post_init__(self) -> None:
+        T = _matrix(self.T_P_D, (4, 4), "T_P_D")
+        if not np.allclose(T[3], [0, 0, 0, 1]) or not _is_rotation(T[:3, :3]):
+            raise InputError("T_P_D must be a rigid 4x4 transform (rotation + translation)")
+        R = _matrix(self.R_P_I, (3, 3), "R_P_I")
+        if not _is_rotation(R):
+            raise InputError("R_P_I must be a rotation matrix")
+        object.__setattr__(self, "T_P_D", T)
+        object.__setattr__(self, "R_P_I", R)
+
+    @classmethod
+    def default(cls) -> Calibration:
+        """The reference board: OAK-D 4 cm above the projector lens, axes parallel."""
+        T = np.eye(4)
+        T[:3, 3] = [0.012, -0.04, 0.005]
+        return cls(Projector.default(), DepthCameraModel.oak_d(), T, np.eye(3))
+
+    def with_depth(self, depth: DepthCameraModel) -> Calibration:
+        """A copy whose depth model is ``depth`` (e.g. read from the camera itself)."""
+        return replace(self, depth=depth)
+
+    # ------------------------------------------------------------------ formats
+    def to_dict(self) -> dict[str, Any]:
+        p, d = self.projector, self.depth
+        return {
+            "format": FORMAT,
+            "projector": {"width": p.width, "height": p.height, "K": p.K.tolist()},
+            "depth": {
+                "width": d.width,
+                "height": d.height,
+                "K": d.K.tolist(),
+                "baseline_m": d.baseline_m,
+            },
+            "extrinsics": {"T_P_D": self.T_P_D.tolist(), "R_P_I": self.R_P_I.tolist()},
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=1)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], what: str = "calibration") -> Calibration:
+        """Validate and build; every problem is an :class:`InputError` naming ``what``."""
+        if data.get("format") != FORMAT:
+            raise InputError(f"{what}: format must be {FORMAT!r}, got {data.get('format')!r}")
+        with field_errors(what):
+            pj, ex = data["projector"], data["extrinsics"]
+            projector = Projector(np.asarray(pj["K"], float), int(pj["width"]), int(pj["height"]))
+            if "depth" in data:
+                dp = data["depth"]
+                depth = DepthCameraModel(
+                    np.asarray(dp["K"], float),
+                    int(dp["width"]),
+                    int(dp["height"]),
+                    float(dp.get("baseline_m", 0.075)),
+                )
+            else:
+                depth = DepthCameraModel.oak_d()
+            T, R = np.asarray(ex["T_P_D"], float), np.asarray(ex["R_P_I"], float)
+            return cls(projector, depth, T, R)
+
+    @classmethod
+    def from_json(cls, text: str | bytes, what: str = "calibration") -> Calibration:
+        try:
+            data = json.loads(text)
+        except (ValueError, UnicodeDecodeError) as e:
+            raise InputError(f"{what} is not valid JSON: {e}") from None
+        if not isinstance(data, dict):
+            raise InputError(f"{what} must be a JSON object")
+        return cls.from_dict(data, what)
+
+    @classmethod
+    def load(cls, path: str | Path) -> Calibration:
+        """Read a calibration TOML (``hw/calibration/*.toml``) or JSON file."""
+        path = Path(path)
+        try:
+            raw = path.read_bytes()
+        except FileNotFoundError:
+            raise InputError(f"calibration file not found: {path}") from None
+        except OSError as e:
+            raise InputError(f"cannot read calibration file {path}: {e.strerror}") from None
+        if path.suffix == ".json":
+            return cls.from_json(raw, str(path))
+        try:
+            data = tomllib.loads(raw.decode("utf-8"))
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+            raise InputError(f"calibration file {path} is not valid TOML: {e}") from None
+        return cls.from_dict(data, str(path))
+
+
+@contextmanager
+def field_errors(what: str) -> Iterator[None]:
+    """Turn a missing key or malformed value while parsing ``what`` into an InputError."""
+    try:
+        yield
+    except KeyError as e:
+        raise InputError(f"{what}: missing field {e.args[0]!r}") from None
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{what}: malformed value ({e})") from None
+    except InputError as e:
+        raise InputError(f"{what}: {e}") from None
+
+
+def _matrix(a: Any, shape: tuple[int, int], what: str) -> FloatArray:
+    m = np.asarray(a, dtype=np.float64)
+    if m.shape != shape or not np.all(np.isfinite(m)):
+        raise InputError(f"{what} must be a finite {shape[0]}x{shape[1]} matrix, got {m.shape}")
+    return m
+
+
+def _is_rotation(R: FloatArray) -> bool:
+    return bool(np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0)
