@@ -23,6 +23,14 @@ class ImageError(InputError):
     """An image or mask cannot be read or has unusable dimensions."""
 
 
+class MaskError(ImageError):
+    """A user mask cannot be used (unreadable, wrong shape); the content stays usable."""
+
+
+class ModelError(InputError):
+    """A saliency model file is missing, unloadable or does not meet the model contract."""
+
+
 class WarpError(AdaprojError):
     """The warp could not be computed for the given surface and content."""
 

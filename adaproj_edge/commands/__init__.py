@@ -13,3 +13,7 @@ from typing import Any
 Register = Callable[["argparse._SubParsersAction[Any]"], None]
 
 REGISTRY: list[Register] = []
+
+from adaproj_edge.commands import saliency  # noqa: E402
+
+REGISTRY.append(saliency.register)

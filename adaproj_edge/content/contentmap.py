@@ -1,22 +1,112 @@
-"""The content map C: pixel-wise max of saliency and the user mask (paper §3.2)."""
+"""The content map C: pixel-wise max of saliency and the user mask (paper §3.2).
+
+C is kept at a coarse resolution that covers the whole content: the warp only samples it
+at its grid vertices (20 × 20 cells by default), so :func:`coarse_size` gives a few
+samples per cell and nothing more. The warp's weight at a vertex is ``C >= T`` (eq. 5).
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.errors import InputError
 
-ContentMap = NDArray[np.float32]
+Map = NDArray[np.float32]
 
 DEFAULT_THRESHOLD = 0.67
+"""T of eq. 5, the paper's value."""
+
+DEFAULT_GRID = (20, 20)
+SAMPLES_PER_CELL = 4
+
+
+def coarse_size(
+    content_size: tuple[int, int],
+    grid: tuple[int, int] = DEFAULT_GRID,
+    samples_per_cell: int = SAMPLES_PER_CELL,
+) -> tuple[int, int]:
+    """(w', h') of the content map for a content of ``content_size`` (w, h).
+
+    The long side gets ``samples_per_cell`` samples per cell of the larger grid side
+    (80 for a 20 × 20 grid), the short side keeps the content's aspect; never larger
+    than the content, never smaller than 2.
+    """
+    w, h = content_size
+    long_side = max(grid) * samples_per_cell
+    scale = min(1.0, long_side / max(w, h))
+    return max(2, min(w, round(w * scale))), max(2, min(h, round(h * scale)))
+
+
+def resize_map(values: NDArray[np.floating], size: tuple[int, int], *, area: bool) -> Map:
+    """Bring a map covering the content to ``size`` (w, h); area-average or bilinear."""
+    interp = cv2.INTER_AREA if area else cv2.INTER_LINEAR
+    arr = np.asarray(values, dtype=np.float32)
+    if arr.shape == (size[1], size[0]):
+        return arr
+    return np.asarray(cv2.resize(arr, size, interpolation=interp), dtype=np.float32)
+
+
+@dataclass(frozen=True)
+class ContentMap:
+    """C over the content, coarse; what the warp weighs.
+
+    Attributes
+    ----------
+    values : (h', w') float32 in [0, 1]
+        Covers the whole content (the engine takes this array as ``content_map``).
+    content_size : (w, h)
+        Size of the content in pixels.
+    threshold : float
+        T of eq. 5.
+    """
+
+    values: Map
+    content_size: tuple[int, int]
+    threshold: float = DEFAULT_THRESHOLD
+
+    def sample(self, xy: NDArray[np.floating]) -> NDArray[np.float32]:
+        """Bilinear C at content pixel coordinates ``xy`` (n, 2); 0 outside the content."""
+        w, h = self.content_size
+        mh, mw = self.values.shape
+        pts = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        mx = (pts[:, 0] + 0.5) * mw / w - 0.5
+        my = (pts[:, 1] + 0.5) * mh / h - 0.5
+        inside = (pts[:, 0] >= -0.5) & (pts[:, 0] <= w - 0.5)
+        inside &= (pts[:, 1] >= -0.5) & (pts[:, 1] <= h - 0.5)
+        mx = np.clip(np.nan_to_num(mx), 0, mw - 1)
+        my = np.clip(np.nan_to_num(my), 0, mh - 1)
+        x0 = np.minimum(np.floor(mx).astype(int), mw - 2)
+        y0 = np.minimum(np.floor(my).astype(int), mh - 2)
+        fx, fy = mx - x0, my - y0
+        v = self.values.astype(np.float64)
+        top = v[y0, x0] * (1 - fx) + v[y0, x0 + 1] * fx
+        bottom = v[y0 + 1, x0] * (1 - fx) + v[y0 + 1, x0 + 1] * fx
+        out = top * (1 - fy) + bottom * fy
+        return np.where(inside, out, 0.0).astype(np.float32)
+
+    def weights(self, xy: NDArray[np.floating]) -> NDArray[np.float32]:
+        """w_a of eq. 5 at content pixel coordinates ``xy`` (n, 2): 1 where C >= T, else 0."""
+        return (self.sample(xy) >= self.threshold).astype(np.float32)
+
+    def salient(self) -> NDArray[np.bool_]:
+        """(h', w') mask of the map cells with C >= T."""
+        return np.asarray(self.values >= self.threshold)
+
+    def full_size(self) -> Map:
+        """C brought to the content size, (h, w) float32 (for display and files)."""
+        return np.clip(resize_map(self.values, self.content_size, area=False), 0.0, 1.0)
 
 
 def combine(
     content_size: tuple[int, int],
     saliency: NDArray[np.floating] | None = None,
     mask: NDArray[np.floating] | None = None,
-) -> ContentMap | None:
+) -> Map | None:
     """``max(saliency, mask)`` at the content size; None when neither is given (uniform).
 
     Both inputs must already be (h, w) float maps in [0, 1] at ``content_size`` (w, h).
@@ -28,7 +118,49 @@ def combine(
     for m in maps:
         if m.shape != (h, w):
             raise InputError(f"content map of shape {m.shape} does not match the content {w}x{h}")
-    out: ContentMap = np.asarray(maps[0], dtype=np.float32)
+    return combine_maps(maps)
+
+
+def combine_maps(maps: list[NDArray[np.floating]]) -> Map:
+    """Pixel-wise max of same-shape maps, NaN as 0, clipped to [0, 1]."""
+    out: Map = np.asarray(maps[0], dtype=np.float32)
     for m in maps[1:]:
         out = np.maximum(out, np.asarray(m, dtype=np.float32))
     return np.clip(np.nan_to_num(out, nan=0.0), 0.0, 1.0).astype(np.float32)
+
+
+def content_map_for(
+    image_bgr: NDArray[np.uint8],
+    mask: NDArray[np.floating] | None = None,
+    model: SaliencyModel | None = None,
+    *,
+    threshold: float = DEFAULT_THRESHOLD,
+    grid: tuple[int, int] = DEFAULT_GRID,
+) -> ContentMap:
+    """The content map of one image: saliency by ``model``, max with ``mask``.
+
+    Parameters
+    ----------
+    image_bgr : (h, w, 3) or (h, w) uint8
+        The content.
+    mask : (h_m, w_m) float array in [0, 1], optional
+        The user mask, at any resolution of the content's aspect (e.g. from
+        :func:`~adaproj_edge.content.mask.load_mask`); it is area-averaged to the map size.
+    model : SaliencyModel, optional
+        Defaults to a new session of the default model; pass one to reuse it.
+    threshold : float
+        T of eq. 5.
+    grid : (rows, cols)
+        The warp grid the map is sized for (:func:`coarse_size`).
+
+    Returns
+    -------
+    ContentMap
+    """
+    h, w = image_bgr.shape[:2]
+    size = coarse_size((w, h), grid)
+    model = model or SaliencyModel()
+    maps = [resize_map(model.predict(image_bgr), size, area=False)]
+    if mask is not None:
+        maps.append(resize_map(mask, size, area=True))
+    return ContentMap(combine_maps(maps), (w, h), threshold)
