@@ -1,0 +1,246 @@
+"""compute_warp: the whole method, from a Surface and a content map to a Warp.
+
+Modes
+-----
+``standard``
+    No pre-warp: the content is fitted (letterboxed) to the projector frame, as a plain
+    projector shows it.
+``conformal``
+    E_a only with uniform weights: the iLamps-style baseline.
+``content`` (default)
+    The content-free warp E' = E_a + lambda E_r (paper §4.1), then the content-aware
+    refinement (:class:`~adaproj_edge.warp.solve.ContentAwareSolver`) when the content
+    map marks some of the content as salient.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import scipy.ndimage
+from numpy.typing import NDArray
+
+from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
+from adaproj_edge.errors import InputError, WarpError
+from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.warp.mesh import Grid, Warp
+from adaproj_edge.warp.meshgeom import MeshGeometry
+from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
+from adaproj_edge.warp.solve import (
+    ContentAwareSolver,
+    ContentAwareWeights,
+    solve_conformal,
+    solve_content_free,
+)
+
+Mode = Literal["content", "conformal", "standard"]
+MODES: tuple[Mode, ...] = ("content", "conformal", "standard")
+
+
+@dataclass(frozen=True)
+class WarpSettings:
+    """Everything that decides a warp besides the surface and the content.
+
+    mode : "content" | "conformal" | "standard"
+    grid : mesh resolution (cells)
+    threshold : T of eq. 5 (content map >= T is salient)
+    lam : lambda of eq. 1 for the content-free warp E'
+    max_iterations, tolerance : alternation stops when the mean vertex motion is below
+        ``tolerance`` content pixels or after ``max_iterations`` steps
+    up : "up" in frame P (from the IMU; default: the projector held level)
+    weights : the content-aware energy's weights
+    """
+
+    mode: Mode = "content"
+    grid: Grid = field(default_factory=Grid)
+    threshold: float = DEFAULT_THRESHOLD
+    lam: float = 1.0
+    max_iterations: int = 10
+    tolerance: float = 0.05
+    up: tuple[float, float, float] = DEFAULT_UP
+    weights: ContentAwareWeights = field(default_factory=ContentAwareWeights)
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise InputError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if not 0.0 <= self.threshold <= 1.0:
+            raise InputError(f"threshold must be in [0, 1], got {self.threshold}")
+        if self.max_iterations < 0 or self.tolerance <= 0 or self.lam < 0:
+            raise InputError("max_iterations, tolerance and lambda must be positive")
+
+
+def sample_content_map(
+    content_map: NDArray[np.floating], xy: FloatArray, size: tuple[int, int]
+) -> FloatArray:
+    """Bilinear content-map values at content pixel coordinates ``xy`` (n, 2).
+
+    The map (h', w') may be coarser than the content (w, h); it covers the same area.
+    Outside the content the value is 0.
+    """
+    w, h = size
+    mh, mw = content_map.shape
+    mx = (xy[:, 0] + 0.5) * (mw / w) - 0.5
+    my = (xy[:, 1] + 0.5) * (mh / h) - 0.5
+    vals = scipy.ndimage.map_coordinates(
+        np.asarray(content_map, dtype=np.float64), [my, mx], order=1, mode="nearest"
+    )
+    inside = (xy[:, 0] >= -0.5) & (xy[:, 0] <= w - 0.5) & (xy[:, 1] >= -0.5) & (xy[:, 1] <= h - 0.5)
+    out: FloatArray = np.where(inside, vals, 0.0)
+    return out
+
+
+def standard_warp(surface: Surface, content_size: tuple[int, int], grid: Grid) -> Warp:
+    """The content letterboxed into the full frame: what a plain projector shows."""
+    proj = surface.projector
+    grid_uv = grid.vertices(proj)
+    w, h = content_size
+    scale = min(proj.width / w, proj.height / h)
+    ox = (proj.width - scale * w) / 2.0
+    oy = (proj.height - scale * h) / 2.0
+    image_xy = (grid_uv + 0.5 - np.array([ox, oy])) / scale - 0.5
+    meta: dict[str, Any] = {"mode": "standard", "grid": str(grid), "iterations": 0}
+    return Warp(grid_uv, image_xy, content_size, proj, meta, depth=None)
+
+
+def compute_warp(
+    surface: Surface,
+    content_size: tuple[int, int],
+    content_map: NDArray[np.floating] | None = None,
+    settings: WarpSettings | None = None,
+) -> Warp:
+    """The warp for ``surface`` and content of ``content_size`` (w, h) pixels.
+
+    Parameters
+    ----------
+    surface : Surface
+        Projector-space point map (any lattice resolution).
+    content_size : (w, h)
+    content_map : (h', w') float array in [0, 1], optional
+        The content map C (saliency max user mask); None means uniform.
+    settings : WarpSettings, optional
+
+    Returns
+    -------
+    Warp with ``meta`` holding the mode, grid, iterations and stage timings (s).
+    """
+    settings = settings or WarpSettings()
+    w, h = content_size
+    if w < 2 or h < 2:
+        raise InputError(f"content size {w}x{h} is too small")
+    if settings.mode == "standard":
+        return standard_warp(surface, content_size, settings.grid)
+    surface.check_usable()
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    mesh = MeshGeometry.build(surface, settings.grid)
+    v = solve_conformal(mesh)
+    timings["conformal"] = time.perf_counter() - t0
+    iterations = 0
+    salient_fraction = 0.0
+    if settings.mode == "content":
+        t1 = time.perf_counter()
+        v, s = solve_content_free(mesh, v, settings.lam)
+        placement = place(mesh, v, content_size, settings.up)
+        timings["init"] = time.perf_counter() - t0
+        t2 = time.perf_counter()
+        if content_map is not None:
+            v, placement, iterations, salient_fraction = refine(
+                mesh, v, s, placement, content_map, content_size, settings
+            )
+        timings["refine"] = time.perf_counter() - t2
+        del t1
+    else:
+        placement = place(mesh, v, content_size, settings.up)
+    timings["total"] = time.perf_counter() - t0
+    return _make_warp(
+        mesh, v, placement, surface, content_size, settings, iterations, salient_fraction, timings
+    )
+
+
+def refine(
+    mesh: MeshGeometry,
+    v: FloatArray,
+    s: FloatArray,
+    placement: Placement,
+    content_map: NDArray[np.floating],
+    content_size: tuple[int, int],
+    settings: WarpSettings,
+) -> tuple[FloatArray, Placement, int, float]:
+    """The content-aware alternation (Algorithm 1, our energy); returns the final
+    positions, their placement, the number of steps and the salient vertex fraction."""
+    if content_map.ndim != 2:
+        raise InputError(f"content map must be a 2D array, got shape {content_map.shape}")
+    solver: ContentAwareSolver | None = None
+    iterations = 0
+    fraction = 0.0
+    for _ in range(settings.max_iterations):
+        xy = placement.apply(v)
+        w = (sample_content_map(content_map, xy, content_size) >= settings.threshold).astype(
+            np.float64
+        )
+        fraction = float(w.mean())
+        if w.min() == w.max():  # nothing or everything salient: E' already is the answer
+            break
+        if solver is None:
+            solver = ContentAwareSolver(mesh, settings.weights)
+        v_new, s_new = solver.step(v, s, w)
+        if not _orientation_ok(mesh, v_new):
+            break  # keep the last fold-free iterate
+        new_placement = place(mesh, v_new, content_size, settings.up)
+        motion = float(np.mean(np.linalg.norm(new_placement.apply(v_new) - xy, axis=1)))
+        v, s, placement = v_new, s_new, new_placement
+        iterations += 1
+        if motion < settings.tolerance:
+            break
+    return v, placement, iterations, fraction
+
+
+def _orientation_ok(mesh: MeshGeometry, v: FloatArray) -> bool:
+    """No triangle folded over (all keep the orientation they have in the projector)."""
+    q = v[mesh.tris]
+    cross = (q[:, 1, 0] - q[:, 0, 0]) * (q[:, 2, 1] - q[:, 0, 1]) - (q[:, 1, 1] - q[:, 0, 1]) * (
+        q[:, 2, 0] - q[:, 0, 0]
+    )
+    return bool(np.all(cross > 0))
+
+
+def _make_warp(
+    mesh: MeshGeometry,
+    v: FloatArray,
+    placement: Placement,
+    surface: Surface,
+    content_size: tuple[int, int],
+    settings: WarpSettings,
+    iterations: int,
+    salient_fraction: float,
+    timings: dict[str, float],
+) -> Warp:
+    if not _orientation_ok(mesh, v):
+        raise WarpError("the warp folds over; the surface is too irregular for this grid")
+    rows, cols = settings.grid.rows + 1, settings.grid.cols + 1
+    image_xy = np.full((rows * cols, 2), np.nan)
+    image_xy[mesh.verts] = placement.apply(v)
+    depth = mesh.points[:, 2].copy()
+    depth[~mesh.used] = np.nan
+    meta: dict[str, Any] = {
+        "mode": settings.mode,
+        "grid": str(settings.grid),
+        "iterations": iterations,
+        "threshold": settings.threshold,
+        "salient_vertex_fraction": salient_fraction,
+        "used_vertices": mesh.n,
+        "timings": timings,
+        "surface": surface.meta,
+    }
+    return Warp(
+        mesh.grid_uv,
+        image_xy.reshape(rows, cols, 2),
+        content_size,
+        surface.projector,
+        meta,
+        depth=depth.reshape(rows, cols),
+    )

@@ -1,0 +1,95 @@
+"""Placing a solved mesh on the content: upright on the surface, content fully inside.
+
+A solve gives content-space positions up to a similarity. Placement picks it: the
+rotation that makes "down" on the surface (gravity, or the projector's y axis) point
+down in the content, then the similarity that makes the content rectangle the
+maximal inscribed rectangle of the covered region (paper §4.1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.geometry.rectangle import inscribed_rectangle
+from adaproj_edge.geometry.triangles import triangle_normals
+from adaproj_edge.warp.meshgeom import MeshGeometry
+
+DEFAULT_UP = (0.0, -1.0, 0.0)  # "up" in frame P when the projector is held level
+
+
+@dataclass(frozen=True)
+class Placement:
+    """``content = scale * R(angle) @ v + offset``, in content pixels."""
+
+    angle: float
+    scale: float
+    offset: FloatArray
+
+    def apply(self, v: FloatArray) -> FloatArray:
+        c, s = np.cos(self.angle), np.sin(self.angle)
+        r = np.array([[c, -s], [s, c]])
+        out: FloatArray = self.scale * (v @ r.T) + self.offset
+        return out
+
+
+def upright_angle(mesh: MeshGeometry, v: FloatArray, up: FloatArray) -> float:
+    """Rotation that turns the surface's down direction to +y in content space.
+
+    For each triangle, ``-up`` projected on its plane is carried into content space by
+    the triangle's affine map; the mean direction (weighted by surface area times how
+    far down lies in the plane) defines the rotation. Returns 0 when the surface is
+    level (down has no direction on it).
+    """
+    p = mesh.p[mesh.tris]  # (T, 3, 3)
+    q = v[mesh.tris]  # (T, 3, 2)
+    n = triangle_normals(p)
+    down = -np.asarray(up, dtype=np.float64)
+    down = down / np.linalg.norm(down)
+    g = down[None, :] - np.sum(n * down, axis=1, keepdims=True) * n
+    e1 = p[:, 1] - p[:, 0]
+    e2 = p[:, 2] - p[:, 0]
+    # express g in the (e1, e2) basis: solve [e1 e2] [a b]^T = g (least squares)
+    m11 = np.sum(e1 * e1, axis=1)
+    m12 = np.sum(e1 * e2, axis=1)
+    m22 = np.sum(e2 * e2, axis=1)
+    r1 = np.sum(e1 * g, axis=1)
+    r2 = np.sum(e2 * g, axis=1)
+    det = m11 * m22 - m12 * m12
+    ok = det > 1e-18
+    a = np.where(ok, (m22 * r1 - m12 * r2) / np.where(ok, det, 1.0), 0.0)
+    b = np.where(ok, (m11 * r2 - m12 * r1) / np.where(ok, det, 1.0), 0.0)
+    d = a[:, None] * (q[:, 1] - q[:, 0]) + b[:, None] * (q[:, 2] - q[:, 0])
+    area = 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
+    strength = np.linalg.norm(g, axis=1)
+    norm = np.linalg.norm(d, axis=1)
+    good = ok & (norm > 0)
+    if not np.any(good):
+        return 0.0
+    unit = d[good] / norm[good, None]
+    mean = np.sum(unit * (area * strength)[good, None], axis=0)
+    if np.linalg.norm(mean) < 1e-12 * max(float(np.sum(area)), 1e-300):
+        return 0.0
+    # rotate mean direction onto +y: angle = atan2(mean) -> pi/2
+    return float(np.pi / 2 - np.arctan2(mean[1], mean[0]))
+
+
+def place(
+    mesh: MeshGeometry,
+    v: FloatArray,
+    content_size: tuple[int, int],
+    up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
+) -> Placement:
+    """Upright rotation and inscribed-rectangle similarity for positions ``v`` (n, 2)."""
+    angle = upright_angle(mesh, v, np.asarray(up, dtype=np.float64))
+    rot = Placement(angle, 1.0, np.zeros(2))
+    vr = rot.apply(v)
+    w, h = content_size
+    centre = vr.mean(axis=0)
+    rect = inscribed_rectangle(vr[mesh.tris], w / h, prefer=centre)
+    scale = w / rect.width
+    # content pixel centres at integers: the rectangle's corner is pixel (-0.5, -0.5)
+    offset = np.array([-0.5 - scale * rect.x0, -0.5 - scale * rect.y0])
+    return Placement(angle, scale, offset)

@@ -1,0 +1,88 @@
+"""Residual rows of the warp energies (paper §3.2–3.3, §4), built from COO-like arrays.
+
+Unknowns are laid out per mesh vertex k: ``x = stride*k``, ``y = stride*k + 1`` and,
+when the relative-size term is present (stride 3), the auxiliary scale
+``s = stride*k + 2``. Every function returns a :class:`Rows` block; the engine gives
+each row its weight.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.warp.system import Rows
+
+IntArray = NDArray[np.intp]
+
+
+def conformal_rows(tris: IntArray, coords: FloatArray, stride: int) -> Rows:
+    """E_a (eq. 4): for each triangle (T, 3) and each of its vertices as apex V1,
+    ``V1 - V2 - alpha (V3 - V2) - beta R90 (V3 - V2)``, two rows (x, y).
+
+    Rows are ordered (triangle, role, component); (6T, 5) coefficients.
+    """
+    t = tris.shape[0]
+    cols = np.empty((t, 3, 2, 5), dtype=np.intp)
+    vals = np.empty((t, 3, 2, 5))
+    for k in range(3):
+        i1, i2, i3 = tris[:, k], tris[:, (k + 1) % 3], tris[:, (k + 2) % 3]
+        a = coords[:, k, 0]
+        b = coords[:, k, 1]
+        x1, x2, x3 = stride * i1, stride * i2, stride * i3
+        y1, y2, y3 = x1 + 1, x2 + 1, x3 + 1
+        one = np.ones(t)
+        # r_x = x1 - (1-a) x2 - a x3 + b y2 - b y3
+        cols[:, k, 0] = np.stack([x1, x2, x3, y2, y3], axis=1)
+        vals[:, k, 0] = np.stack([one, a - 1, -a, b, -b], axis=1)
+        # r_y = y1 - (1-a) y2 - a y3 - b x2 + b x3
+        cols[:, k, 1] = np.stack([y1, y2, y3, x2, x3], axis=1)
+        vals[:, k, 1] = np.stack([one, a - 1, -a, -b, b], axis=1)
+    return Rows(cols.reshape(-1, 5), vals.reshape(-1, 5), np.zeros(6 * t))
+
+
+def scale_edge_rows(
+    edges: IntArray, lengths: FloatArray, directions: FloatArray, stride: int = 3
+) -> Rows:
+    """r(V_i, s_i) (eq. 11): for each directed edge i -> j,
+    ``V_i - V_j - s_i l_ij v_ij``, two rows (x, y); (2E, 3) coefficients.
+
+    ``edges`` (E, 2) directed, ``lengths`` (E,) on the surface, ``directions`` (E, 2)
+    unit vectors in content space.
+    """
+    i, j = edges[:, 0], edges[:, 1]
+    e = edges.shape[0]
+    cols = np.empty((e, 2, 3), dtype=np.intp)
+    vals = np.empty((e, 2, 3))
+    for c in range(2):
+        cols[:, c] = np.stack([stride * i + c, stride * j + c, stride * i + 2], axis=1)
+        vals[:, c, 0] = 1.0
+        vals[:, c, 1] = -1.0
+        vals[:, c, 2] = -lengths * directions[:, c]
+    return Rows(cols.reshape(-1, 3), vals.reshape(-1, 3), np.zeros(2 * e))
+
+
+def update_scale_edge_directions(rows: Rows, lengths: FloatArray, directions: FloatArray) -> None:
+    """Refresh the s-coefficients of :func:`scale_edge_rows` for new directions (in place)."""
+    rows.vals[:, 2] = -(lengths[:, None] * directions).ravel()
+
+
+def scale_smooth_rows(edges: IntArray, stride: int = 3) -> Rows:
+    """``s_i - s_j`` for each undirected edge (eq. 10, first sum); (E, 2)."""
+    cols = np.stack([stride * edges[:, 0] + 2, stride * edges[:, 1] + 2], axis=1)
+    vals = np.tile(np.array([1.0, -1.0]), (edges.shape[0], 1))
+    return Rows(cols.astype(np.intp), vals, np.zeros(edges.shape[0]))
+
+
+def scale_anchor_rows(n_vertices: int, target: float = 1.0, stride: int = 3) -> Rows:
+    """``s_k - target`` for every vertex: ties the salient scales to one common value."""
+    cols = (stride * np.arange(n_vertices) + 2)[:, None].astype(np.intp)
+    return Rows(cols, np.ones((n_vertices, 1)), np.full(n_vertices, target))
+
+
+def position_rows(n_vertices: int, stride: int) -> Rows:
+    """``V_k - target`` rows (x then y per vertex); targets are set by the caller."""
+    base = stride * np.arange(n_vertices)
+    cols = np.stack([base, base + 1], axis=1).reshape(-1, 1).astype(np.intp)
+    return Rows(cols, np.ones((2 * n_vertices, 1)), np.zeros(2 * n_vertices))
