@@ -45,3 +45,30 @@ class DeviceNotFoundError(DeviceError):
 
 class DevicePermissionError(DeviceError):
     """A device exists but this process may not open it."""
+
+
+class LinkError(DeviceError):
+    """The serial link to the device failed, or its SMP server refused a request."""
+
+
+class ContentError(InputError):
+    """Content refused by the device's store: a bad name, too big, not an image."""
+
+
+class ContentNotFoundError(ContentError):
+    """No content item (or no pending upload) of that name on the device."""
+
+
+class QuotaError(ContentError):
+    """An upload would take the store past its quota or its item limit."""
+
+
+class UploadOffsetError(ContentError):
+    """An upload chunk is not at the end of the bytes received so far.
+
+    ``expected`` is the offset the store can continue at; a client resumes there.
+    """
+
+    def __init__(self, message: str, expected: int) -> None:
+        super().__init__(message)
+        self.expected = expected

@@ -110,6 +110,14 @@ def read_image(path: str | os.PathLike[str], *, gray: bool = False) -> NDArray[n
     return decode_image(data, str(path), gray=gray)
 
 
+def image_size(data: bytes) -> tuple[int, int] | None:
+    """(width, height) read from the header of PNG or JPEG bytes, without decoding.
+
+    ``None`` when ``data`` is neither format or its header is cut short.
+    """
+    return _header_size(data)
+
+
 def _header_size(data: bytes) -> tuple[int, int] | None:
     """(width, height) from a PNG or JPEG header, None if it cannot be told cheaply."""
     if data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 24:

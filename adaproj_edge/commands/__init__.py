@@ -17,3 +17,12 @@ REGISTRY: list[Register] = []
 from adaproj_edge.commands import saliency  # noqa: E402
 
 REGISTRY.append(saliency.register)
+from adaproj_edge.commands import link  # noqa: E402
+
+REGISTRY.append(link.register)
+from adaproj_edge.commands import push  # noqa: E402
+
+REGISTRY.append(push.register)
+from adaproj_edge.commands import device  # noqa: E402
+
+REGISTRY.append(device.register)

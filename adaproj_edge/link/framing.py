@@ -1,0 +1,177 @@
+"""SMP serial framing: base64 lines with a length and a CRC16, in both directions.
+
+A frame on the wire is ``[uint16 length][message][uint16 CRC16]`` (big-endian; the
+length counts the message and the CRC; the CRC is CRC-16/XMODEM over the message),
+base64-encoded and cut into lines. The first line starts with ``06 09``, every
+further line with ``04 14``; each line ends with ``\\n`` and carries a whole number
+of base64 quads. This is Zephyr's "SMP over console", what ``smpclient``'s
+``SMPSerialTransport`` speaks.
+
+The decoder never trusts the wire: it keeps at most one line and one frame in memory,
+drops what does not parse (with a logged reason) and starts over at the next start
+line. Nothing it is fed can make it raise.
+"""
+
+from __future__ import annotations
+
+import binascii
+import logging
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+log = logging.getLogger(__name__)
+
+START = b"\x06\x09"
+CONTINUE = b"\x04\x14"
+LINE_LENGTH = 128
+"""Bytes per line we send, delimiters and newline included (the SMP convention)."""
+MAX_LINE = 4096
+"""Longest line we accept; a longer one is noise and is skipped up to its newline."""
+
+
+def crc16(data: bytes) -> int:
+    """CRC-16/XMODEM (poly 0x1021, init 0), the SMP serial checksum."""
+    return binascii.crc_hqx(data, 0)
+
+
+def encode_frame(message: bytes, line_length: int = LINE_LENGTH) -> bytes:
+    """The wire bytes (all lines) for one SMP ``message``.
+
+    Parameters
+    ----------
+    message : bytes
+        Header and CBOR body, at most 65533 bytes.
+    line_length : int
+        Bytes per line including the 2-byte delimiter and the newline (>= 8).
+    """
+    if len(message) > 0xFFFF - 2:
+        raise ValueError(f"an SMP message is at most 65533 bytes, not {len(message)}")
+    body = (len(message) + 2).to_bytes(2, "big") + message + crc16(message).to_bytes(2, "big")
+    text = binascii.b2a_base64(body, newline=False)
+    per_line = max(4, ((line_length - 3) // 4) * 4)
+    lines = []
+    for i in range(0, len(text), per_line):
+        lines.append((START if i == 0 else CONTINUE) + text[i : i + per_line] + b"\n")
+    return b"".join(lines)
+
+
+@dataclass
+class DecoderStats:
+    """What the decoder has seen; each ``dropped`` entry is counted by reason."""
+
+    frames: int = 0
+    dropped: dict[str, int] = field(default_factory=dict)
+
+    def drop(self, reason: str) -> None:
+        self.dropped[reason] = self.dropped.get(reason, 0) + 1
+
+
+class FrameDecoder:
+    """Turns a byte stream into SMP messages (header + body, CRC checked).
+
+    Parameters
+    ----------
+    max_message : int
+        The largest message accepted (the advertised buffer size minus the 4 bytes of
+        length and CRC); a frame declaring more is dropped as soon as its first line
+        is read.
+
+    Examples
+    --------
+    >>> d = FrameDecoder(1024)
+    >>> list(d.feed(encode_frame(b"\\x00" * 8)))
+    [b'\\x00\\x00\\x00\\x00\\x00\\x00\\x00\\x00']
+    """
+
+    def __init__(self, max_message: int) -> None:
+        self.max_message = max_message
+        self.stats = DecoderStats()
+        self._line = bytearray()
+        self._skipping = False
+        self._frame: bytearray | None = None
+        self._want = 0
+
+    def feed(self, data: bytes) -> Iterator[bytes]:
+        """Consume ``data``; yield each complete, intact message it finishes."""
+        start = 0
+        while start < len(data):
+            nl = data.find(b"\n", start)
+            end = len(data) if nl < 0 else nl
+            if self._skipping:
+                pass
+            elif len(self._line) + (end - start) > MAX_LINE:
+                self._line.clear()
+                self._skipping = True
+                self._abandon("overlong line")
+            else:
+                self._line += data[start:end]
+            if nl < 0:
+                return
+            start = nl + 1
+            if self._skipping:
+                self._skipping = False
+                continue
+            line = bytes(self._line)
+            self._line.clear()
+            message = self._take_line(line)
+            if message is not None:
+                yield message
+
+    def _abandon(self, reason: str) -> None:
+        if self._frame is not None:
+            self._frame = None
+            self.stats.drop(reason)
+            log.warning("dropped a partial SMP frame: %s", reason)
+
+    def _take_line(self, line: bytes) -> bytes | None:
+        if line.endswith(b"\r"):
+            line = line[:-1]
+        head, text = line[:2], line[2:]
+        if head == START:
+            self._abandon("new frame started before the last one ended")
+            self._frame = bytearray()
+        elif head != CONTINUE or self._frame is None:
+            return None  # console text or a stray continuation: not ours
+        chunk = _b64(text)
+        if chunk is None:
+            self._frame = None
+            self.stats.drop("bad base64")
+            log.warning("dropped an SMP frame with a line that is not base64")
+            return None
+        frame = self._frame
+        frame += chunk
+        if head == START:
+            if len(frame) < 2:
+                self._frame = None
+                self.stats.drop("first line too short")
+                return None
+            self._want = int.from_bytes(frame[:2], "big")
+            if self._want < 2 or self._want - 2 > self.max_message:
+                self._frame = None
+                self.stats.drop("bad length")
+                log.warning("dropped an SMP frame declaring %d bytes", self._want)
+                return None
+        have = len(frame) - 2
+        if have < self._want:
+            return None
+        self._frame = None
+        if have > self._want:
+            self.stats.drop("longer than declared")
+            log.warning("dropped an SMP frame longer than its declared length")
+            return None
+        message = bytes(frame[2:-2])
+        if crc16(message) != int.from_bytes(frame[-2:], "big"):
+            self.stats.drop("bad CRC")
+            log.warning("dropped an SMP frame with a bad CRC")
+            return None
+        self.stats.frames += 1
+        return message
+
+
+def _b64(text: bytes) -> bytes | None:
+    if len(text) % 4:
+        return None
+    try:
+        return binascii.a2b_base64(text, strict_mode=True)
+    except (binascii.Error, ValueError):
+        return None
