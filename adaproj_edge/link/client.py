@@ -174,10 +174,10 @@ def describe(response: Any) -> str:
     return repr(response)
 
 
-async def call(client: SMPClient, request: Any, timeout_s: float = TIMEOUT_S) -> Any:
-    """The successful response to ``request``; :class:`LinkError` otherwise."""
+async def send(client: SMPClient, message: Any, timeout_s: float = TIMEOUT_S) -> Any:
+    """The response to request ``message``, success or error; :class:`LinkError` if none."""
     try:
-        response = await client.request(request, timeout_s=timeout_s)
+        return await client.request(message, timeout_s=timeout_s)
     except TimeoutError:
         raise LinkError(
             f"no answer from the device on {client.address} within {timeout_s:g} s; "
@@ -185,6 +185,11 @@ async def call(client: SMPClient, request: Any, timeout_s: float = TIMEOUT_S) ->
         ) from None
     except Exception as e:  # smpclient raises its own types for broken replies
         raise LinkError(f"bad reply from the device on {client.address}: {e}") from None
+
+
+async def call(client: SMPClient, request: Any, timeout_s: float = TIMEOUT_S) -> Any:
+    """The successful response to ``request``; :class:`LinkError` otherwise."""
+    response = await send(client, request, timeout_s)
     if error(response):
         raise LinkError(f"device refused {type(request).__name__}: {describe(response)}")
     assert success(response)
@@ -213,19 +218,21 @@ async def connect(port: str, timeout_s: float = TIMEOUT_S) -> AsyncIterator[SMPC
 Progress = Callable[[int, int], None]
 
 
-async def resume_point(client: SMPClient, data: bytes, name: str) -> int | None:
+async def resume_point(
+    client: SMPClient, data: bytes, name: str, timeout_s: float = TIMEOUT_S
+) -> int | None:
     """Where an upload of ``data`` as ``name`` can go on; ``None`` if already there.
 
     The device's pending upload is used only if its declared size matches and the
     SHA-256 of what it holds equals that of the same prefix of ``data``.
     """
-    state = await call(client, UploadStateRead(name=name))
+    state = await call(client, UploadStateRead(name=name), timeout_s)
     if state.len == len(data) and 0 < state.off <= len(data):
         if hashlib.sha256(data[: state.off]).digest() == state.sha:
             return int(state.off)
-    response = await client.request(FileStatus(name=name), timeout_s=TIMEOUT_S)
+    response = await send(client, FileStatus(name=name), timeout_s)
     if success(response) and response.len == len(data):
-        digest = await call(client, FileHashChecksum(name=name, type="sha256"))
+        digest = await call(client, FileHashChecksum(name=name, type="sha256"), timeout_s)
         if digest.output == hashlib.sha256(data).digest():
             return None
     return 0
@@ -238,13 +245,14 @@ async def upload(
     progress: Progress | None = None,
     *,
     resume: bool = True,
+    timeout_s: float = TIMEOUT_S,
 ) -> int:
     """Upload ``data`` as item ``name``, resuming what the device already holds.
 
     Returns the offset the transfer started at (``len(data)`` when the device already
     had the file). Chunks fill the device's advertised buffer.
     """
-    off = await resume_point(client, data, name) if resume else 0
+    off = await resume_point(client, data, name, timeout_s) if resume else 0
     if off is None:
         if progress:
             progress(len(data), len(data))
@@ -261,7 +269,7 @@ async def upload(
         _, room = client.get_max_cbor_and_data_size(probe)
         chunk = data[off : off + max(room, 1)]
         request = FileUploadResumable(name=name, off=off, data=chunk, len=total)
-        response = await client.request(request, timeout_s=TIMEOUT_S)
+        response = await send(client, request, timeout_s)
         if success(response):
             off = response.off
             retries = 0
@@ -272,7 +280,7 @@ async def upload(
             and retries < 3
         ):
             retries += 1
-            resumed = await resume_point(client, data, name)
+            resumed = await resume_point(client, data, name, timeout_s)
             off = len(data) if resumed is None else resumed
             continue
         raise LinkError(f"upload of {name} refused: {describe(response)}")

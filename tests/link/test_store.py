@@ -1,0 +1,200 @@
+"""The content store: names, quota, image checks, offsets, atomic commit."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from adaproj_edge.errors import (
+    ContentError,
+    ContentNotFoundError,
+    ImageError,
+    QuotaError,
+    UploadOffsetError,
+)
+from adaproj_edge.link.store import ActiveRecord, ContentStore, Limits, check_name
+from tests.link.media import jpeg_bytes, png_bomb, png_bytes
+
+
+def files(root: Path) -> list[str]:
+    return sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file())
+
+
+@pytest.mark.parametrize(
+    "raw",
+    [
+        "../x.png",
+        "/../x.png",
+        "a/b.png",
+        "..png",
+        ".hidden.png",
+        "x.png/",
+        "//x.png",
+        "",
+        "x.exe",
+        "x.png\x00.txt",
+        "ä.png",
+        "x" * 70 + ".png",
+        "C:\\x.png",
+    ],
+)
+def test_bad_names_refused(raw: str) -> None:
+    with pytest.raises(ContentError, match="not allowed"):
+        check_name(raw)
+
+
+def test_good_names() -> None:
+    assert check_name("/Poster_1.final.PNG") == "Poster_1.final.PNG"
+    assert check_name("a.jpeg") == "a.jpeg"
+
+
+def test_upload_in_chunks_commits_at_the_end(store: ContentStore) -> None:
+    data = png_bytes(64, 48)
+    assert store.begin("/p.png", len(data), data[:100]) == 100
+    assert not (store.root / "p.png").exists()
+    assert store.pending_for("p.png") is not None
+    assert store.append("p.png", 100, data[100:]) == len(data)
+    assert (store.root / "p.png").read_bytes() == data
+    assert store.pending() == []
+    assert [i.name for i in store.items()] == ["p.png"]
+    assert store.items()[0].width == 64
+
+
+def test_jpeg_accepted(store: ContentStore) -> None:
+    data = jpeg_bytes(40, 30)
+    store.begin("j.jpg", len(data), data)
+    assert store.items()[0].height == 30
+
+
+def test_offset_mismatch_says_where_to_resume(store: ContentStore) -> None:
+    data = png_bytes(64, 48)
+    store.begin("p.png", len(data), data[:50])
+    with pytest.raises(UploadOffsetError) as e:
+        store.append("p.png", 80, data[80:90])
+    assert e.value.expected == 50
+    with pytest.raises(UploadOffsetError) as e:
+        store.append("q.png", 10, b"x")
+    assert e.value.expected == 0
+
+
+def test_restart_at_zero_discards_the_partial(store: ContentStore) -> None:
+    data = png_bytes(64, 48)
+    store.begin("p.png", len(data), data[:50])
+    store.begin("p.png", len(data), data[:20])
+    assert store.pending_for("p.png") is not None
+    assert store.pending_for("p.png").received == 20  # type: ignore[union-attr]
+
+
+def test_more_than_declared_refused(store: ContentStore) -> None:
+    data = png_bytes(64, 48)
+    with pytest.raises(ContentError, match="declared"):
+        store.begin("p.png", 10, data[:11])
+
+
+def test_over_quota_refused_before_writing(tmp_path: Path) -> None:
+    s = ContentStore(tmp_path / "s", Limits(quota=10_000))
+    data = png_bytes(100, 100)
+    before = files(s.root)
+    with pytest.raises(QuotaError, match="does not fit"):
+        s.begin("big.png", len(data), data[:1000])
+    assert files(s.root) == before
+
+
+def test_item_limit(tmp_path: Path) -> None:
+    s = ContentStore(tmp_path / "s", Limits(max_items=1))
+    data = png_bytes(8, 8)
+    s.begin("a.png", len(data), data)
+    s.begin("a.png", len(data), data)  # replacing is fine
+    with pytest.raises(QuotaError, match="most"):
+        s.begin("b.png", len(data), data)
+
+
+@pytest.mark.parametrize(
+    "data",
+    [
+        b"hello, not an image at all, really",
+        b"GIF89a" + b"\x00" * 40,
+        b"\x89PNG\r\n\x1a\n" + b"\x00" * 5,
+    ],
+)
+def test_non_images_refused_and_nothing_left(store: ContentStore, data: bytes) -> None:
+    before = files(store.root)
+    with pytest.raises(ImageError):
+        store.begin("x.png", len(data), data)
+    assert files(store.root) == before
+
+
+def test_truncated_png_refused_at_commit(store: ContentStore) -> None:
+    data = png_bytes(64, 48)
+    cut = data[:-40] + b"\x00" * 40
+    store.begin("x.png", len(cut), cut[:64])
+    with pytest.raises(ImageError):
+        store.append("x.png", 64, cut[64:])
+    assert files(store.root) == []
+
+
+def test_decompression_bomb_refused_from_its_header(store: ContentStore) -> None:
+    bomb = png_bomb()
+    before = files(store.root)
+    with pytest.raises(ImageError, match="refused before decoding"):
+        store.begin("bomb.png", len(bomb), bomb[:4096])
+    assert files(store.root) == before
+
+
+def test_failed_upload_leaves_committed_and_active_alone(store: ContentStore) -> None:
+    good = png_bytes(32, 32, seed=1)
+    store.begin("show.png", len(good), good)
+    store.set_active(ActiveRecord("show.png", None, {"mode": "content-free"}))
+    other = png_bytes(32, 32, seed=2)
+    store.begin("show.png", len(other), other[:100])  # replacement started, never finished
+    assert (store.root / "show.png").read_bytes() == good
+    assert store.active() == ActiveRecord("show.png", None, {"mode": "content-free"})
+    broken = other[:-10] + b"\x00" * 10
+    store.begin("show.png", len(broken), broken[:100])
+    with pytest.raises(ImageError):
+        store.append("show.png", 100, broken[100:])
+    assert (store.root / "show.png").read_bytes() == good
+
+
+def test_pending_survives_reopen(store: ContentStore) -> None:
+    data = png_bytes(64, 48)
+    store.begin("p.png", len(data), data[:77])
+    again = ContentStore(store.root)
+    p = again.pending_for("p.png")
+    assert p is not None and (p.received, p.total) == (77, len(data))
+    assert again.append("p.png", 77, data[77:]) == len(data)
+
+
+def test_oldest_pending_dropped_beyond_the_limit(store: ContentStore) -> None:
+    data = png_bytes(16, 16)
+    for i in range(6):
+        store.begin(f"p{i}.png", len(data), data[:40])
+    names = [p.name for p in store.pending()]
+    assert len(names) == 4 and "p5.png" in names
+
+
+def test_delete_and_active_guard(store: ContentStore) -> None:
+    data = png_bytes(16, 16)
+    store.begin("a.png", len(data), data)
+    store.set_active(ActiveRecord("a.png"))
+    with pytest.raises(ContentError, match="being shown"):
+        store.delete("a.png")
+    store.begin("b.png", len(data), data)
+    store.set_active(ActiveRecord("b.png"))
+    store.delete("a.png")
+    with pytest.raises(ContentNotFoundError):
+        store.delete("a.png")
+
+
+def test_read_and_digest(store: ContentStore) -> None:
+    import hashlib
+    import zlib
+
+    data = png_bytes(16, 16)
+    store.begin("a.png", len(data), data)
+    assert store.read("a.png", 10, 5) == (data[10:15], len(data))
+    assert store.digest("a.png", "sha256")[0] == hashlib.sha256(data).digest()
+    assert store.digest("a.png", "crc32", 3, 20) == (zlib.crc32(data[3:23]), 20)
+    with pytest.raises(UploadOffsetError):
+        store.read("a.png", len(data) + 1, 5)
