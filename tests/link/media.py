@@ -9,21 +9,21 @@ import cv2
 import numpy as np
 
 
-def png_bytes(w: int, h: int, seed: int = 0) -> bytes:
-    """A noisy colour PNG of ``w`` x ``h`` (noise keeps it from compressing away)."""
+def _noise(w: int, h: int, seed: int, ext: str) -> bytes:
+    """A noisy colour image (noise keeps it from compressing away) encoded as ``ext``."""
     rng = np.random.default_rng(seed)
     img = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
-    ok, enc = cv2.imencode(".png", img)
+    ok, enc = cv2.imencode(ext, img)
     assert ok
     return bytes(enc.tobytes())
+
+
+def png_bytes(w: int, h: int, seed: int = 0) -> bytes:
+    return _noise(w, h, seed, ".png")
 
 
 def jpeg_bytes(w: int, h: int, seed: int = 0) -> bytes:
-    rng = np.random.default_rng(seed)
-    img = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
-    ok, enc = cv2.imencode(".jpg", img)
-    assert ok
-    return bytes(enc.tobytes())
+    return _noise(w, h, seed, ".jpg")
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:
