@@ -131,8 +131,10 @@ def build_model(params: gbvs.GBVSParams | None = None) -> onnx.ModelProto:
     act = g.one("Div", [degree, g.one("ReduceSum", [degree, "one"], keepdims=1)])
 
     # Normalisation: detailed balance gives pi_i ~ A_i (A F_norm)_i.
-    q = g.one("Mul", [act, g.one("MatMul", [act, "f_norm"])])
-    norm = g.one("Div", [q, g.one("ReduceSum", [q, "one"], keepdims=1)])
+    norm = act
+    for _ in range(params.norm_iters):
+        q = g.one("Mul", [norm, g.one("MatMul", [norm, "f_norm"])])
+        norm = g.one("Div", [q, g.one("ReduceSum", [q, "one"], keepdims=1)])
 
     # Combination, final blur, scale to max 1.
     total = g.one("Reshape", [g.one("MatMul", ["combine", norm]), "out_shape"])

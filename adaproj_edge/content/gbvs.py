@@ -16,11 +16,12 @@ The computation, for an RGB image ``(3, H, W)`` in [0, 1]:
    average-pooled down to the graph size ``params.map_size``.
 3. **Activation.** Over each map ``M`` (``n`` nodes) the fully connected graph with
    weights ``w(i, j) = (|log(M_i + e) − log(M_j + e)| + ε) F_act(i, j)``, where ``F`` is
-   a Gaussian of the grid distance (σ = ``sigma_frac_act`` × mean map side). The
-   activation ``A`` is the equilibrium distribution of the Markov chain that walks this
-   graph (rows normalised).
+   a Gaussian of the grid distance (σ = ``sigma_frac_act`` × mean map side) with
+   reflecting borders, so no place is favoured. The activation ``A`` is the
+   equilibrium distribution of the Markov chain that walks this graph (rows normalised).
 4. **Normalisation.** A second chain with weights ``w(i, j) = A_j F_norm(i, j)``; its
-   equilibrium concentrates mass where activation is high and isolated.
+   equilibrium concentrates mass where activation is high and isolated. Applied
+   ``norm_iters`` times.
 5. **Combination.** Maps are averaged within their channel (intensity, colour,
    orientation), channels are summed, blurred once with the binomial kernel (as the
    authors blur the master map) and divided by the maximum.
@@ -80,6 +81,12 @@ class GBVSParams:
         have no reliable colour).
     channel_weights : (3,) tuple of float
         Weights of the intensity, colour and orientation channels.
+    norm_iters : int
+        How many times the normalisation chain is applied (``num_norm_iters`` in the
+        authors' code); each pass moves mass from diffuse maps onto isolated peaks.
+    border_reflect : float
+        Weight of the mirror images in the distance falloff (:func:`falloff`): 1 makes
+        the graph favour no place; 0 is the authors' open graph, which has a centre bias.
     """
 
     map_size: tuple[int, int] = (15, 24)
@@ -91,10 +98,12 @@ class GBVSParams:
     orientations_deg: tuple[float, ...] = (0.0, 45.0, 90.0, 135.0)
     sigma_frac_act: float = 0.15
     sigma_frac_norm: float = 0.06
-    log_eps: float = 0.02
+    log_eps: float = 0.2
     weight_eps: float = 1e-3
     colour_floor: float = 0.1
     channel_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    norm_iters: int = 2
+    border_reflect: float = 1.0
 
     @property
     def input_size(self) -> tuple[int, int]:
@@ -162,18 +171,30 @@ def gabor_pair(params: GBVSParams) -> F32:
     return np.stack(even + odd).astype(np.float32)
 
 
-def falloff(map_size: tuple[int, int], sigma_frac: float) -> F32:
-    """Gaussian of the grid distance between nodes, shape ``(n, n)``.
+def _falloff_1d(size: int, sigma: float, reflect: float) -> NDArray[np.float64]:
+    """Gaussian of the index distance along one axis, plus ``reflect`` times the same
+    Gaussian of the target's mirror images about the borders."""
+    i = np.arange(size, dtype=np.float64)[:, None]
+    j = np.arange(size, dtype=np.float64)[None, :]
+    f = np.exp(-((i - j) ** 2) / (2 * sigma**2))
+    if reflect:
+        for im in (-1 - j, 2 * size - 1 - j):
+            f = f + reflect * np.exp(-((i - im) ** 2) / (2 * sigma**2))
+    return f
+
+
+def falloff(map_size: tuple[int, int], sigma_frac: float, reflect: float = 0.0) -> F32:
+    """Gaussian of the grid distance between nodes, shape ``(n, n)``, symmetric.
 
     σ is ``sigma_frac`` times the mean side of the map, in nodes. Nodes are numbered
-    row-major.
+    row-major. ``reflect`` in [0, 1] adds the mirror images of the nodes about the
+    borders: 0 is the authors' open graph (border nodes have fewer neighbours, which
+    makes a centre bias), 1 a fully reflecting border (no place favoured).
     """
     rows, cols = map_size
     sigma = sigma_frac * (rows + cols) / 2.0
-    yy, xx = np.mgrid[0:rows, 0:cols]
-    pts = np.stack([yy.ravel(), xx.ravel()], axis=1).astype(np.float64)
-    d2 = ((pts[:, None, :] - pts[None, :, :]) ** 2).sum(axis=2)
-    return np.asarray(np.exp(-d2 / (2.0 * sigma**2)), dtype=np.float32)
+    f = np.kron(_falloff_1d(rows, sigma, reflect), _falloff_1d(cols, sigma, reflect))
+    return np.asarray(f, dtype=np.float32)
 
 
 def map_weights(params: GBVSParams) -> F32:
@@ -190,12 +211,12 @@ def map_weights(params: GBVSParams) -> F32:
 
 def constants(params: GBVSParams) -> Constants:
     """Every constant array the model needs, computed once from ``params``."""
-    f_act = falloff(params.map_size, params.sigma_frac_act)
+    f_act = falloff(params.map_size, params.sigma_frac_act, params.border_reflect)
     return Constants(
         blur=np.outer(BINOMIAL_5, BINOMIAL_5).astype(np.float32),
         gabor=gabor_pair(params),
         f_act=f_act,
-        f_norm=falloff(params.map_size, params.sigma_frac_norm),
+        f_norm=falloff(params.map_size, params.sigma_frac_norm, params.border_reflect),
         act_bias=(np.float32(params.weight_eps) * f_act.sum(axis=1)).astype(np.float32),
         combine=map_weights(params),
     )
@@ -323,7 +344,9 @@ def saliency(rgb: F32, params: GBVSParams | None = None) -> F32:
     if rgb.shape != (3, *params.input_size):
         raise ValueError(f"expected (3, {params.input_size}) input, got {rgb.shape}")
     const = constants(params)
-    norm = normalisation(activation(feature_maps(rgb, params, const), params, const), const)
+    norm = activation(feature_maps(rgb, params, const), params, const)
+    for _ in range(params.norm_iters):
+        norm = normalisation(norm, const)
     total = (const.combine @ norm).reshape(1, *params.map_size)
     blurred = correlate_valid(reflect_pad(total, 2), const.blur[None])[0, 0]
     return np.asarray(blurred / blurred.max(), dtype=np.float32)

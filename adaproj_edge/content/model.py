@@ -52,11 +52,20 @@ def to_input(image_bgr: NDArray[np.uint8], size: tuple[int, int]) -> NDArray[np.
     return np.ascontiguousarray(rgb[None])
 
 
+FLAT = 1e-3
+"""A map whose range is below ``FLAT`` times its largest magnitude counts as constant."""
+
+
 def normalise(raw: NDArray[Any]) -> NDArray[np.float32]:
-    """Rescale a raw saliency map to [0, 1]; constant or non-finite maps give zeros."""
+    """Rescale a raw saliency map to [0, 1]; (nearly) constant maps give zeros.
+
+    Non-finite values count as 0. "Nearly constant" (range below :data:`FLAT` of the
+    largest magnitude) covers a flat image, whose map differs from a constant only by
+    float rounding: stretching that to [0, 1] would show noise as saliency.
+    """
     m = np.nan_to_num(np.asarray(raw, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
     lo, hi = float(m.min()), float(m.max())
-    if hi - lo < 1e-12:
+    if hi - lo <= FLAT * max(abs(lo), abs(hi)) or hi - lo < 1e-12:
         return np.zeros_like(m)
     return ((m - lo) / np.float32(hi - lo)).astype(np.float32)
 
