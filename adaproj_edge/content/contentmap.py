@@ -122,10 +122,10 @@ def combine(
 
 
 def combine_maps(maps: list[NDArray[np.floating]]) -> Map:
-    """Pixel-wise max of same-shape maps, NaN as 0, clipped to [0, 1]."""
+    """Pixel-wise max of same-shape maps (NaN loses to a number, is 0 alone), in [0, 1]."""
     out: Map = np.asarray(maps[0], dtype=np.float32)
     for m in maps[1:]:
-        out = np.maximum(out, np.asarray(m, dtype=np.float32))
+        out = np.fmax(out, np.asarray(m, dtype=np.float32))
     return np.clip(np.nan_to_num(out, nan=0.0), 0.0, 1.0).astype(np.float32)
 
 
