@@ -23,11 +23,19 @@ class Distortion:
     angle: NDArray[np.float64]  # per triangle
     log_size: NDArray[np.float64]
     centroid_xy: NDArray[np.float64]  # content-space centroid per triangle
+    centroid_uv: NDArray[np.float64]  # projector-space centroid per triangle
     folds: int  # triangles whose content orientation is reversed
     nonfinite: int
 
     def select(self, keep: NDArray[np.bool_]) -> Distortion:
-        return Distortion(self.angle[keep], self.log_size[keep], self.centroid_xy[keep], 0, 0)
+        return Distortion(
+            self.angle[keep],
+            self.log_size[keep],
+            self.centroid_xy[keep],
+            self.centroid_uv[keep],
+            0,
+            0,
+        )
 
     @property
     def angle_mean(self) -> float:
@@ -66,7 +74,7 @@ def measure(
     ):
         sl = lambda o0, o1: (slice(o0, o0 + len(ys) - 1), slice(o1, o1 + len(xs) - 1))  # noqa: E731
         tris.append((sl(a0, a1), sl(b0, b1), sl(c0, c1)))
-    angles, sizes, cents = [], [], []
+    angles, sizes, cents, cents_uv = [], [], [], []
     folds = 0
     nonfinite = int(np.sum(np.isinf(map_xy)))
     label = _labels(surface, X)
@@ -94,8 +102,15 @@ def measure(
         angles.append(sv[:, 0] / sv[:, 1] - 1.0)
         sizes.append(0.5 * np.log(sv[:, 0] * sv[:, 1]))
         cents.append(((c0 + c1 + c2) / 3.0)[ok][good])
+        u0, u1, u2 = uv[s0].reshape(-1, 2), uv[s1].reshape(-1, 2), uv[s2].reshape(-1, 2)
+        cents_uv.append(((u0 + u1 + u2) / 3.0)[ok][good])
     return Distortion(
-        np.concatenate(angles), np.concatenate(sizes), np.concatenate(cents), folds, nonfinite
+        np.concatenate(angles),
+        np.concatenate(sizes),
+        np.concatenate(cents),
+        np.concatenate(cents_uv),
+        folds,
+        nonfinite,
     )
 
 

@@ -1,11 +1,21 @@
 """Warp mesh -> per-pixel map: the content coordinate each projector pixel shows.
 
-Inside each grid triangle the content coordinate is interpolated perspective-correctly:
-with pixel-space barycentrics ``l_k`` and vertex depths ``z_k`` the weights are
-``(l_k / z_k) / sum_j (l_j / z_j)``, which is exact interpolation over the 3D triangle
-the rays span (the same rule GPUs use). On a plane the warp is therefore exact at every
-pixel, not only at the vertices; plain piecewise-linear interpolation leaves a
-projective error of a few percent per cell.
+Two ways to fill the inside of a grid triangle:
+
+* ``surface`` given (the dense point map): the pixel's own surface point X is projected
+  orthogonally onto the plane of its 3D triangle and carried to content space by the
+  triangle's affine map. On a plane this is exact; on a curved developable surface the
+  error is second order in the cell's curvature (it does not grow with the viewing
+  angle, unlike any interpolation along the ray). Where X lies far from its own
+  triangle's plane - a crease, such as a wall corner, running through the cell - the
+  plane of a neighbouring triangle that X lies on is used instead, so each side of the
+  crease gets its own wall's exact map.
+* no surface: perspective-correct interpolation with the vertex depths,
+  ``(l_k / z_k) / sum_j (l_j / z_j)`` for pixel-space barycentrics ``l_k`` - exact
+  over the 3D triangle the rays span.
+
+Plain piecewise-linear interpolation in pixel space leaves a projective error of a few
+percent per cell even on a tilted plane.
 """
 
 from __future__ import annotations
@@ -13,11 +23,16 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge.geometry.creases import unfold_creases
 from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.geometry.triangles import grid_triangles
 from adaproj_edge.warp.mesh import Warp
 
+IntArray = NDArray[np.intp]
 
-def _cells(positions: FloatArray, n_pixels: int) -> tuple[NDArray[np.intp], FloatArray]:
+
+def _cells(positions: FloatArray, n_pixels: int) -> tuple[IntArray, FloatArray]:
     """Cell index and fraction within it for every pixel coordinate 0..n_pixels-1."""
     x = np.arange(n_pixels, dtype=np.float64)
     c = np.clip(np.searchsorted(positions, x, side="right") - 1, 0, positions.size - 2)
@@ -25,40 +40,31 @@ def _cells(positions: FloatArray, n_pixels: int) -> tuple[NDArray[np.intp], Floa
     return c, f
 
 
-def map_from_warp(warp: Warp, perspective: bool = True) -> NDArray[np.float32]:
+class _PixelCells:
+    """Which cell and which of its two triangles each pixel lies in."""
+
+    def __init__(self, warp: Warp) -> None:
+        proj = warp.projector
+        self.rows, self.cols = warp.grid_uv.shape[:2]
+        cx, fx = _cells(warp.grid_uv[0, :, 0], proj.width)
+        cy, fy = _cells(warp.grid_uv[:, 0, 1], proj.height)
+        self.cx, self.cy = np.meshgrid(cx, cy)
+        self.fx, self.fy = np.meshgrid(fx, fy)
+        self.upper = self.fx >= self.fy  # triangle (a, b, e), else (a, e, d)
+        # triangle index as numbered by grid_triangles: 2 * cell + (0 upper, 1 lower)
+        self.tri = 2 * (self.cy * (self.cols - 1) + self.cx) + (~self.upper).astype(np.intp)
+
+
+def map_from_warp(warp: Warp, surface: Surface | None = None) -> NDArray[np.float32]:
     """The (H, W, 2) float32 map of content coordinates; NaN where the pixel shows black
     (no surface under its triangle, or outside the content)."""
-    proj = warp.projector
-    rows, cols = warp.grid_uv.shape[:2]
-    xs = warp.grid_uv[0, :, 0]
-    ys = warp.grid_uv[:, 0, 1]
-    cx, fx = _cells(xs, proj.width)
-    cy, fy = _cells(ys, proj.height)
-    cxx, cyy = np.meshgrid(cx, cy)
-    fxx, fyy = np.meshgrid(fx, fy)
-    a = cyy * cols + cxx
-    b = a + 1
-    d = a + cols
-    e = d + 1
-    upper = fxx >= fyy  # triangle (a, b, e), else (a, e, d)
-    la = np.where(upper, 1.0 - fxx, 1.0 - fyy)
-    lb = np.where(upper, fxx - fyy, 0.0)
-    ld = np.where(upper, 0.0, fyy - fxx)
-    le = np.where(upper, fyy, fxx)
-    v = warp.image_xy.reshape(-1, 2)
-    if perspective and warp.depth is not None:
-        inv_z = 1.0 / warp.depth.reshape(-1)
-    else:
-        inv_z = np.ones(rows * cols)
-    wa, wb, wd, we = la * inv_z[a], lb * inv_z[b], ld * inv_z[d], le * inv_z[e]
-    total = wa + wb + wd + we
-    out = np.empty((proj.height, proj.width, 2), dtype=np.float32)
-    for k in range(2):
-        vk = v[:, k]
-        # a zero weight must not let a NaN vertex of the other triangle through
-        acc = wa * vk[a] + np.where(lb > 0, wb * vk[b], 0.0) + np.where(ld > 0, wd * vk[d], 0.0)
-        acc = acc + we * vk[e]
-        out[..., k] = acc / total
+    cells = _PixelCells(warp)
+    out = _perspective(warp, cells)
+    if surface is not None:
+        X = surface.dense().points.astype(np.float64)
+        ortho = _TrianglePlanes(warp, surface).to_content(cells.tri, X)
+        use = np.isfinite(ortho).all(axis=2) & np.isfinite(out).all(axis=2)
+        out[use] = ortho[use]
     w, h = warp.content_size
     outside = (
         ~np.isfinite(out).all(axis=2)
@@ -68,4 +74,69 @@ def map_from_warp(warp: Warp, perspective: bool = True) -> NDArray[np.float32]:
         | (out[..., 1] > h - 0.5)
     )
     out[outside] = np.nan
+    return out.astype(np.float32)
+
+
+def _perspective(warp: Warp, cells: _PixelCells) -> FloatArray:
+    cols = cells.cols
+    a = cells.cy * cols + cells.cx
+    b, d = a + 1, a + cols
+    e = d + 1
+    up, fx, fy = cells.upper, cells.fx, cells.fy
+    la = np.where(up, 1.0 - fx, 1.0 - fy)
+    lb = np.where(up, fx - fy, 0.0)
+    ld = np.where(up, 0.0, fy - fx)
+    le = np.where(up, fy, fx)
+    if warp.depth is not None:
+        inv_z = 1.0 / warp.depth.reshape(-1)
+    else:
+        inv_z = np.ones(cells.rows * cols)
+    wa, wb, wd, we = la * inv_z[a], lb * inv_z[b], ld * inv_z[d], le * inv_z[e]
+    total = wa + wb + wd + we
+    v = warp.image_xy.reshape(-1, 2)
+    out = np.empty((*a.shape, 2))
+    for k in range(2):
+        vk = v[:, k]
+        # a zero weight must not let a NaN vertex of the other triangle through
+        acc = wa * vk[a] + np.where(lb > 0, wb * vk[b], 0.0) + np.where(ld > 0, wd * vk[d], 0.0)
+        out[..., k] = (acc + we * vk[e]) / total
     return out
+
+
+class _TrianglePlanes:
+    """Per grid triangle: its (unfolded) plane and the affine map from it to content."""
+
+    def __init__(self, warp: Warp, surface: Surface) -> None:
+        rows, cols = warp.grid_uv.shape[:2]
+        tris = grid_triangles(rows - 1, cols - 1)
+        if warp.depth is None:
+            raise ValueError("a surface map needs the warp's vertex depths")
+        P = (warp.projector.rays(warp.grid_uv) * warp.depth[..., None]).reshape(-1, 3)
+        self.unfolding = unfold_creases(surface, warp.grid_uv.reshape(-1, 2)[tris], tris, P)
+        corners = self.unfolding.points
+        V = warp.image_xy.reshape(-1, 2)
+        self.origin = corners[:, 0]
+        self.e1 = corners[:, 1] - self.origin
+        self.e2 = corners[:, 2] - self.origin
+        with np.errstate(invalid="ignore", divide="ignore"):
+            g11 = np.sum(self.e1 * self.e1, axis=1)
+            g12 = np.sum(self.e1 * self.e2, axis=1)
+            g22 = np.sum(self.e2 * self.e2, axis=1)
+            det = g11 * g22 - g12 * g12
+            self.ginv = np.stack([g22 / det, -g12 / det, g11 / det], axis=1)
+        self.v0 = V[tris[:, 0]]
+        self.d1 = V[tris[:, 1]] - self.v0
+        self.d2 = V[tris[:, 2]] - self.v0
+
+    def to_content(self, t: IntArray, X: FloatArray) -> FloatArray:
+        """Content coordinates of surface points ``X`` (..., 3) in triangles ``t`` (...):
+        unfolded when the triangle has a crease, then projected orthogonally onto the
+        triangle's plane and carried by its affine map."""
+        r = self.unfolding.unfold_points(t, X) - self.origin[t]
+        r1 = np.sum(r * self.e1[t], axis=-1)
+        r2 = np.sum(r * self.e2[t], axis=-1)
+        g = self.ginv[t]
+        u = g[..., 0] * r1 + g[..., 1] * r2
+        v = g[..., 1] * r1 + g[..., 2] * r2
+        out: FloatArray = self.v0[t] + u[..., None] * self.d1[t] + v[..., None] * self.d2[t]
+        return out

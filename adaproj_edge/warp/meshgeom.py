@@ -10,6 +10,7 @@ import scipy.sparse.csgraph
 from numpy.typing import NDArray
 
 from adaproj_edge.errors import WarpError
+from adaproj_edge.geometry.creases import unfold_creases
 from adaproj_edge.geometry.projector import FloatArray
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import conformal_coords, grid_triangles, triangle_normals
@@ -89,11 +90,16 @@ class MeshGeometry:
         verts = np.flatnonzero(used)
         index[verts] = np.arange(verts.size)
         tris = index[cand]
-        coords = conformal_coords(pts[cand])
         e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
-        e = np.unique(np.sort(e, axis=1), axis=0)
-        p = pts[verts]
-        lengths = np.linalg.norm(p[e[:, 0]] - p[e[:, 1]], axis=1)
+        e, inverse = np.unique(np.sort(e, axis=1), axis=0, return_inverse=True)
+        tri_pts = unfold_creases(surface, grid_uv.reshape(-1, 2)[cand], cand, pts).points
+        coords = conformal_coords(tri_pts)
+        # edge lengths as the (unfolded) triangles have them; an edge shared by two
+        # triangles gets the mean of their two values
+        tri_len = np.linalg.norm(tri_pts - np.roll(tri_pts, -1, axis=1), axis=2)  # edge k: k->k+1
+        sums = np.bincount(inverse, weights=tri_len.T.ravel(), minlength=e.shape[0])
+        counts = np.bincount(inverse, minlength=e.shape[0])
+        lengths = sums / counts
         return cls(grid, grid_uv, pts, used, index, verts, tris, coords, e, lengths)
 
 

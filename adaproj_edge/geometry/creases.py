@@ -1,0 +1,148 @@
+"""Creases: unfolding grid triangles that a wall corner runs through.
+
+A grid triangle whose surface (sampled at its edge midpoints and centroid) lies
+farther than ``ROUGH`` of its size from its own plane has a crease in it: its chord
+triangle cuts the corner and has the wrong shape. Each of its corners takes the plane
+of the smooth triangles around it; when these are two different planes, the corners
+on the second plane are rotated about the planes' line of intersection into the first
+- the surface is unfolded there, exactly as it develops. The warp solve uses the
+unfolded shapes, and the renderer unfolds each pixel's surface point the same way, so
+both walls of a corner are exact up to the crease itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.geometry.triangles import triangle_normals
+
+IntArray = NDArray[np.intp]
+
+ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, of a crease
+CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this make a crease
+
+
+@dataclass(frozen=True)
+class Unfolding:
+    """Triangle corners with creases unfolded, and how to unfold a point of each triangle.
+
+    Attributes
+    ----------
+    points : (T, 3, 3) corners, unfolded where ``folded``.
+    folded : (T,) bool.
+    normal_a, normal_b : (T, 3) the two planes' normals (NaN where not folded).
+    point_b : (T, 3) a point of plane b.
+    rotation : (T, 3, 3) and origin : (T, 3): a point X of plane b unfolds to
+        ``origin + rotation @ (X - origin)``.
+    """
+
+    points: FloatArray
+    folded: NDArray[np.bool_]
+    normal_a: FloatArray
+    point_a: FloatArray
+    normal_b: FloatArray
+    point_b: FloatArray
+    rotation: FloatArray
+    origin: FloatArray
+
+    def unfold_points(self, t: IntArray, X: FloatArray) -> FloatArray:
+        """Unfold surface points ``X`` (..., 3) lying in triangles ``t`` (...)."""
+        out = X.copy()
+        f = self.folded[t]
+        if not np.any(f):
+            return out
+        tf, xf = t[f], X[f]
+        da = np.abs(np.sum((xf - self.point_a[tf]) * self.normal_a[tf], axis=-1))
+        db = np.abs(np.sum((xf - self.point_b[tf]) * self.normal_b[tf], axis=-1))
+        on_b = db < da
+        o = self.origin[tf]
+        rotated = o + np.einsum("nij,nj->ni", self.rotation[tf], xf - o)
+        out[f] = np.where(on_b[:, None], rotated, xf)
+        return out
+
+
+def unfold_creases(
+    surface: Surface, tri_uv: FloatArray, tris: IntArray, points: FloatArray
+) -> Unfolding:
+    """Unfold the creased triangles among ``tris`` (T, 3) (vertex indices into ``points``
+    (N, 3)), whose pixel corners are ``tri_uv`` (T, 3, 2)."""
+    tri_pts = points[tris]
+    t_count = tris.shape[0]
+    out = tri_pts.copy()
+    nan3 = np.full((t_count, 3), np.nan)
+    unfolding = Unfolding(
+        out,
+        np.zeros(t_count, dtype=bool),
+        nan3.copy(),
+        nan3.copy(),
+        nan3.copy(),
+        nan3.copy(),
+        np.tile(np.eye(3), (t_count, 1, 1)),
+        np.zeros((t_count, 3)),
+    )
+    n = triangle_normals(tri_pts)
+    size = np.sqrt(
+        np.linalg.norm(
+            np.cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0]), axis=1
+        )
+    )
+    probes = np.stack(
+        [
+            (tri_uv[:, 0] + tri_uv[:, 1]) / 2,
+            (tri_uv[:, 1] + tri_uv[:, 2]) / 2,
+            (tri_uv[:, 2] + tri_uv[:, 0]) / 2,
+            tri_uv.mean(axis=1),
+        ],
+        axis=1,
+    )
+    xs = surface.points_at(probes)  # (T, 4, 3)
+    dist = np.abs(np.sum((xs - tri_pts[:, :1]) * n[:, None, :], axis=2))
+    rough = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=1) > ROUGH * size
+    if not np.any(rough):
+        return unfolding
+    # the plane of each vertex: area-weighted normal of its smooth triangles
+    smooth = ~rough & np.all(np.isfinite(n), axis=1)
+    acc = np.zeros((points.shape[0], 3))
+    for k in range(3):
+        np.add.at(acc, tris[smooth, k], n[smooth] * size[smooth, None] ** 2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        vn = acc / np.linalg.norm(acc, axis=1, keepdims=True)
+    for t in np.flatnonzero(rough):
+        normals = vn[tris[t]]
+        if not np.all(np.isfinite(normals)):
+            continue
+        group_b = [k for k in range(3) if float(normals[k] @ normals[0]) < CREASE_COS]
+        if not group_b:
+            continue
+        if any(float(normals[k] @ normals[group_b[0]]) < CREASE_COS for k in group_b):
+            continue  # three different planes: not a single crease
+        group_a = [k for k in range(3) if k not in group_b]
+        na, nb = normals[group_a[0]], normals[group_b[0]]
+        pa, pb = tri_pts[t, group_a[0]], tri_pts[t, group_b[0]]
+        rot, origin = _unfolding_rotation(pa, na, pb, nb)
+        out[t, group_b] = origin + (tri_pts[t, group_b] - origin) @ rot.T
+        unfolding.folded[t] = True
+        unfolding.normal_a[t], unfolding.point_a[t] = na, pa
+        unfolding.normal_b[t], unfolding.point_b[t] = nb, pb
+        unfolding.rotation[t], unfolding.origin[t] = rot, origin
+    return unfolding
+
+
+def _unfolding_rotation(
+    pa: FloatArray, na: FloatArray, pb: FloatArray, nb: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Rotation about the line where planes (pa, na) and (pb, nb) meet that turns plane b
+    into plane a (its far side onto a's extension, since both normals face the viewer)."""
+    d = np.cross(nb, na)
+    sin = float(np.linalg.norm(d))
+    d = d / sin
+    origin = np.linalg.solve(np.stack([na, nb, d]), np.array([na @ pa, nb @ pb, d @ pa]))
+    angle = float(np.arctan2(sin, float(nb @ na)))
+    k = np.array([[0.0, -d[2], d[1]], [d[2], 0.0, -d[0]], [-d[1], d[0], 0.0]])
+    rot: FloatArray = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+    return rot, origin
