@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from adaproj_edge.errors import InputError
+from adaproj_edge.geometry.files import read_input
 from adaproj_edge.geometry.projector import FloatArray, Projector
 
 FORMAT = "adaproj-calibration/1"
@@ -169,12 +170,7 @@ class Calibration:
     def load(cls, path: str | Path) -> Calibration:
         """Read a calibration TOML (``hw/calibration/*.toml``) or JSON file."""
         path = Path(path)
-        try:
-            raw = path.read_bytes()
-        except FileNotFoundError:
-            raise InputError(f"calibration file not found: {path}") from None
-        except OSError as e:
-            raise InputError(f"cannot read calibration file {path}: {e.strerror}") from None
+        raw = read_input(path, "calibration file")
         if path.suffix == ".json":
             return cls.from_json(raw, str(path))
         try:

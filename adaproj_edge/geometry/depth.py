@@ -1,0 +1,383 @@
+"""Depth frame + calibration -> the Surface the warp engine needs.
+
+Steps (:func:`estimate_surface`):
+
+1. depth outside the working range, and pixels far from their 5x5 median (speckle),
+   are dropped;
+2. the depth image is smoothed by normalised convolution (a Gaussian over valid
+   pixels only), which also gives each pixel its *support* (how much valid data is
+   around it);
+3. each lattice node's projector ray is intersected with that smoothed depth surface:
+   the point ``s d`` on the ray is moved into frame D, projected into the depth image,
+   and ``s`` updated until the depth it predicts matches the depth measured there (the
+   P-D baseline is a few centimetres, so this converges in a few steps). This
+   back-projects, transforms to frame P and resamples in projector space at once,
+   and keeps creases sharp;
+4. isolated spikes on the lattice are rejected, small holes (not touching the frame
+   border) are filled from their neighbours;
+5. every node gets a confidence in [0, 1] from support, the stereo noise expected at
+   its depth (grows with z^2), the viewing angle, and whether it was filled.
+
+:class:`SurfaceFilter` averages estimates over time while the device is still
+(:func:`is_still` decides that from IMU samples). Grazing angles, holes and surfaces
+out of range lower coverage and confidence; they never raise.
+Pure: arrays in, arrays out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from adaproj_edge.geometry.calibration import Calibration
+from adaproj_edge.geometry.projector import FloatArray, Projector
+from adaproj_edge.geometry.surface import Surface
+
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class DepthSettings:
+    """Tuning of the depth -> surface pipeline (metres, pixels)."""
+
+    min_depth_m: float = 0.35
+    max_depth_m: float = 6.0
+    speckle_rel: float = 0.03
+    smooth_sigma_px: float = 1.5
+    min_support: float = 0.35
+    iterations: int = 8
+    max_hole_nodes: int = 16
+    disparity_sigma_px: float = 0.1
+    sigma_ref_m: float = 0.02
+    spike_rel: float = 0.02
+
+
+@dataclass(frozen=True)
+class SurfaceEstimate:
+    """A Surface lattice with per-node confidence.
+
+    Attributes
+    ----------
+    surface : Surface
+        Points (rows, cols, 3) in frame P, NaN where unknown.
+    confidence : (rows, cols) float32
+        In [0, 1]; 0 where there is no point.
+    filled : (rows, cols) bool
+        Nodes filled in from neighbours (a hole in the depth data).
+    frames : int
+        Depth frames averaged into this estimate.
+    """
+
+    surface: Surface
+    confidence: NDArray[np.float32]
+    filled: BoolArray
+    frames: int = 1
+
+    @property
+    def coverage(self) -> float:
+        """Fraction of lattice nodes with a point."""
+        return self.surface.valid_fraction
+
+    @property
+    def mean_confidence(self) -> float:
+        """Mean confidence over the whole lattice (unknown nodes count as 0)."""
+        return float(np.mean(self.confidence))
+
+    def summary(self) -> dict[str, float | int]:
+        return {
+            "coverage": round(self.coverage, 4),
+            "confidence": round(self.mean_confidence, 4),
+            "filled": int(self.filled.sum()),
+            "frames": self.frames,
+        }
+
+
+def lattice_uv(projector: Projector, shape: tuple[int, int]) -> FloatArray:
+    """Projector pixel coordinates (rows, cols, 2) of a lattice whose corners are the
+    corner pixel centres (the Surface convention)."""
+    rows, cols = shape
+    xs = np.linspace(0.0, projector.width - 1.0, cols)
+    ys = np.linspace(0.0, projector.height - 1.0, rows)
+    return np.stack(np.meshgrid(xs, ys), axis=-1)
+
+
+def depth_sigma(z: FloatArray, calibration: Calibration, disparity_sigma_px: float) -> FloatArray:
+    """Stereo depth noise (m) at depth ``z``: z^2 / (f B) * sigma_disparity."""
+    d = calibration.depth
+    return z * z / (d.focal * d.baseline_m) * disparity_sigma_px
+
+
+def clean_depth(depth_m: FloatArray, settings: DepthSettings) -> FloatArray:
+    """Range check and speckle rejection; (h, w) metres with NaN where invalid."""
+    z = np.asarray(depth_m, dtype=np.float64).copy()
+    with np.errstate(invalid="ignore"):
+        z[~((z >= settings.min_depth_m) & (z <= settings.max_depth_m))] = np.nan
+    z32 = np.nan_to_num(z, nan=0.0).astype(np.float32)
+    med = cv2.medianBlur(z32, 5).astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        z[np.abs(z - med) > settings.speckle_rel * z] = np.nan
+    return z
+
+
+def smooth_depth(z: FloatArray, sigma_px: float) -> tuple[FloatArray, FloatArray]:
+    """Normalised-convolution smoothing: (smoothed z, support), both (h, w)."""
+    m = np.isfinite(z).astype(np.float32)
+    zz = np.where(m > 0, z, 0.0).astype(np.float32)
+    num = cv2.GaussianBlur(zz, (0, 0), sigma_px, borderType=cv2.BORDER_CONSTANT)
+    den = cv2.GaussianBlur(m, (0, 0), sigma_px, borderType=cv2.BORDER_CONSTANT)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        zs = np.where(den > 1e-3, num / den, np.nan)
+    return zs.astype(np.float64), den.astype(np.float64)
+
+
+def _sample(img: NDArray[np.float32], uv: FloatArray) -> FloatArray:
+    """Bilinear sample of ``img`` (h, w) at ``uv`` (..., 2); 0 outside."""
+    mx = uv[..., 0].astype(np.float32)
+    my = uv[..., 1].astype(np.float32)
+    out = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    return out.astype(np.float64)
+
+
+def intersect_rays(
+    dirs_p: FloatArray,
+    zs: FloatArray,
+    support: FloatArray,
+    calibration: Calibration,
+    settings: DepthSettings,
+) -> tuple[FloatArray, FloatArray]:
+    """Ray parameter ``s`` (...,) where rays ``s * dirs_p`` (..., 3) in frame P meet the
+    smoothed depth surface ``zs`` (h, w), and the support there; NaN where they do not.
+    """
+    T = calibration.T_P_D
+    R, t = T[:3, :3], T[:3, 3]
+    a = dirs_p @ R  # R^T d: ray direction in D
+    b = -R.T @ t  # projector centre in D
+    K = calibration.depth.K
+    valid = np.isfinite(zs) & (support >= settings.min_support)
+    num = np.where(valid, zs * support, 0.0).astype(np.float32)
+    wgt = np.where(valid, support, 0.0).astype(np.float32)
+    sup = support.astype(np.float32)
+    good = zs[valid]
+    s = np.full(dirs_p.shape[:-1], float(np.median(good)) if good.size else 1.0)
+    z_meas = np.full_like(s, np.nan)
+    for _ in range(settings.iterations):
+        x = s[..., None] * a + b
+        with np.errstate(invalid="ignore", divide="ignore"):
+            uv = (x @ K.T)[..., :2] / x[..., 2:3]
+        uv = np.nan_to_num(uv, nan=-10.0, posinf=-10.0, neginf=-10.0)
+        w = _sample(wgt, uv)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z_meas = np.where(w > 1e-3, _sample(num, uv) / w, np.nan)
+            s_new = (z_meas - b[2]) / a[..., 2]
+        s = np.where(np.isfinite(s_new) & (s_new > 0), s_new, s)
+    x = s[..., None] * a + b
+    with np.errstate(invalid="ignore", divide="ignore"):
+        uv = (x @ K.T)[..., :2] / x[..., 2:3]
+    uv = np.nan_to_num(uv, nan=-10.0, posinf=-10.0, neginf=-10.0)
+    sup_at = _sample(sup, uv)
+    mask_at = _sample(valid.astype(np.float32), uv)
+    with np.errstate(invalid="ignore"):
+        residual = np.abs(x[..., 2] - z_meas)
+        ok = (
+            np.isfinite(z_meas)
+            & (mask_at > 0.5)
+            & (residual < 0.002 + 0.01 * s)
+            & (s > settings.min_depth_m)
+        )
+    return np.where(ok, s, np.nan), np.where(ok, sup_at, 0.0)
+
+
+def reject_spikes(s: FloatArray, rel: float) -> FloatArray:
+    """Drop nodes that stick out of their neighbours in every direction (rows, cols)."""
+    p = np.pad(s, 1, constant_values=np.nan)
+    c = p[1:-1, 1:-1]
+    dev = []
+    for (y0, x0), (y1, x1) in (
+        ((0, 1), (2, 1)),
+        ((1, 0), (1, 2)),
+        ((0, 0), (2, 2)),
+        ((0, 2), (2, 0)),
+    ):
+        a = p[y0 : y0 + c.shape[0], x0 : x0 + c.shape[1]]
+        b = p[y1 : y1 + c.shape[0], x1 : x1 + c.shape[1]]
+        dev.append(np.abs(c - (a + b) / 2))
+    with np.errstate(invalid="ignore"):
+        d = np.stack(dev)
+        known = np.isfinite(d)
+        spike = np.all(~known | (d > rel * c), axis=0) & (known.sum(axis=0) >= 3)
+    out = s.copy()
+    out[spike] = np.nan
+    return out
+
+
+def fill_holes(s: FloatArray, max_nodes: int) -> tuple[FloatArray, BoolArray]:
+    """Fill NaN regions of at most ``max_nodes`` nodes that do not touch the border.
+
+    Harmonic fill (each filled node the mean of its neighbours). Returns the filled
+    lattice and the mask of filled nodes.
+    """
+    hole = ~np.isfinite(s)
+    labels, n = ndimage.label(hole)
+    if n == 0:
+        return s, np.zeros_like(hole)
+    sizes = np.bincount(labels.ravel())
+    border = np.unique(np.r_[labels[0], labels[-1], labels[:, 0], labels[:, -1]])
+    small = sizes <= max_nodes
+    small[0] = False
+    small[border] = False
+    fill = small[labels]
+    if not fill.any():
+        return s, fill
+    out = np.where(fill, np.nanmean(s), s)
+    for _ in range(4 * max_nodes + 20):
+        p = np.pad(out, 1, mode="edge")
+        nb = np.stack([p[:-2, 1:-1], p[2:, 1:-1], p[1:-1, :-2], p[1:-1, 2:]])
+        with np.errstate(invalid="ignore"):
+            avg = np.nanmean(np.where(np.isfinite(nb), nb, np.nan), axis=0)
+        out = np.where(fill, avg, out)
+    return out, fill
+
+
+def node_confidence(
+    points: FloatArray,
+    support: FloatArray,
+    filled: BoolArray,
+    calibration: Calibration,
+    settings: DepthSettings,
+) -> NDArray[np.float32]:
+    """Confidence (rows, cols) in [0, 1] of lattice ``points`` (rows, cols, 3)."""
+    z = points[..., 2]
+    valid = np.isfinite(z)
+    c_support = np.clip(support / 0.8, 0.0, 1.0)
+    sigma = depth_sigma(np.where(valid, z, 0.0), calibration, settings.disparity_sigma_px)
+    c_noise = np.exp(-((sigma / settings.sigma_ref_m) ** 2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dx = np.gradient(points, axis=1)
+        dy = np.gradient(points, axis=0)
+        n = np.cross(dx, dy)
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        ray = points / np.linalg.norm(points, axis=-1, keepdims=True)
+        cos = np.abs(np.sum(n * ray, axis=-1))
+    c_angle = np.clip((np.nan_to_num(cos, nan=0.5) - 0.1) / 0.3, 0.0, 1.0)
+    c = np.where(filled, 0.5, c_support) * c_noise * c_angle
+    return np.where(valid, c, 0.0).astype(np.float32)
+
+
+def estimate_surface(
+    depth_m: FloatArray,
+    calibration: Calibration,
+    shape: tuple[int, int] = (21, 21),
+    settings: DepthSettings | None = None,
+) -> SurfaceEstimate:
+    """The Surface at a (rows, cols) lattice of projector rays from one depth frame.
+
+    Parameters
+    ----------
+    depth_m : (h, w) float array
+        Depth in metres in frame D (z along the optical axis), NaN or 0 = invalid.
+    calibration : Calibration
+        Depth model, projector and ``T_P_D``.
+    shape : (rows, cols)
+        Lattice size: the warp grid's vertex count (e.g. (21, 21) for a 20x20 grid),
+        or a fine lattice for a dense surface (see :func:`dense_shape`).
+    """
+    settings = settings or DepthSettings()
+    z = np.asarray(depth_m, dtype=np.float64)
+    if z.shape != (calibration.depth.height, calibration.depth.width):
+        z = cv2.resize(
+            np.nan_to_num(z, nan=0.0).astype(np.float32),
+            (calibration.depth.width, calibration.depth.height),
+            interpolation=cv2.INTER_NEAREST,
+        ).astype(np.float64)
+    z = np.where(z > 0, z, np.nan)
+    zs, support = smooth_depth(clean_depth(z, settings), settings.smooth_sigma_px)
+    p = calibration.projector
+    dirs = p.rays(lattice_uv(p, shape))
+    s, sup = intersect_rays(dirs, zs, support, calibration, settings)
+    s = reject_spikes(s, settings.spike_rel)
+    s, filled = fill_holes(s, settings.max_hole_nodes)
+    points = dirs * s[..., None]
+    conf = node_confidence(points, np.where(filled, 0.5, sup), filled, calibration, settings)
+    surface = Surface(points.astype(np.float32), p, {"source": "depth"})
+    est = SurfaceEstimate(surface, conf, filled & np.isfinite(s))
+    return replace(est, surface=replace(surface, meta={"source": "depth", **est.summary()}))
+
+
+def dense_shape(projector: Projector, step: int = 4) -> tuple[int, int]:
+    """Lattice shape with one node every ``step`` projector pixels."""
+    return (projector.height - 1) // step + 1, (projector.width - 1) // step + 1
+
+
+def is_still(
+    gyro: FloatArray, accel: FloatArray, max_rate: float = 0.03, max_accel_std: float = 0.15
+) -> bool:
+    """Whether IMU samples (N, 3) gyro rad/s and (N, 3) accel m/s^2 show a still device."""
+    g = np.asarray(gyro, dtype=np.float64).reshape(-1, 3)
+    a = np.asarray(accel, dtype=np.float64).reshape(-1, 3)
+    if len(g) < 2:
+        return False
+    rate = float(np.linalg.norm(np.median(g, axis=0)))
+    jitter = float(np.max(np.std(a, axis=0)))
+    return rate <= max_rate and jitter <= max_accel_std
+
+
+class SurfaceFilter:
+    """Averages estimates over time while the device is still; restarts when it moves.
+
+    Per node, a running mean of the depth along the ray (so a point stays on its ray),
+    weighted by confidence; a node whose new depth jumps more than ``jump_rel`` of its
+    depth starts over. At most ``max_frames`` frames are kept in the mean.
+    """
+
+    def __init__(self, max_frames: int = 12, jump_rel: float = 0.03) -> None:
+        self.max_frames = max_frames
+        self.jump_rel = jump_rel
+        self._s: FloatArray | None = None
+        self._w: FloatArray | None = None
+        self._c: FloatArray | None = None
+        self._n = 0
+        self.current: SurfaceEstimate | None = None
+
+    def reset(self) -> None:
+        self._s = self._w = self._c = None
+        self._n = 0
+        self.current = None
+
+    def update(self, est: SurfaceEstimate, still: bool) -> SurfaceEstimate:
+        pts = est.surface.points.astype(np.float64)
+        s_new = pts[..., 2]
+        c_new = est.confidence.astype(np.float64)
+        if not still or self._s is None or self._s.shape != s_new.shape:
+            self._s, self._c = s_new.copy(), c_new.copy()
+            self._w = np.where(np.isfinite(s_new), np.maximum(c_new, 1e-3), 0.0)
+            self._n = 1
+            self.current = est
+            return est
+        assert self._w is not None and self._c is not None
+        with np.errstate(invalid="ignore"):
+            both = np.isfinite(s_new) & np.isfinite(self._s)
+            jump = both & (np.abs(s_new - self._s) > self.jump_rel * self._s)
+        w_new = np.where(np.isfinite(s_new), np.maximum(c_new, 1e-3), 0.0)
+        cap = np.max(w_new) * self.max_frames if w_new.size else 1.0
+        w_old = np.where(jump, 0.0, np.minimum(self._w, cap))
+        total = w_old + w_new
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s = np.where(
+                total > 0,
+                (np.nan_to_num(self._s) * w_old + np.nan_to_num(s_new) * w_new) / total,
+                np.nan,
+            )
+            c = np.where(total > 0, (self._c * w_old + c_new * w_new) / total, 0.0)
+        self._s, self._w, self._c = s, total, c
+        self._n = min(self._n + 1, self.max_frames)
+        dirs = est.surface.projector.rays(lattice_uv(est.surface.projector, s.shape))
+        surface = Surface(
+            (dirs * s[..., None]).astype(np.float32), est.surface.projector, dict(est.surface.meta)
+        )
+        filled = est.filled & ~np.isfinite(self._s) | (est.filled & (w_old == 0))
+        self.current = SurfaceEstimate(surface, c.astype(np.float32), filled, self._n)
+        return self.current
