@@ -26,3 +26,9 @@ REGISTRY.append(push.register)
 from adaproj_edge.commands import device  # noqa: E402
 
 REGISTRY.append(device.register)
+from adaproj_edge.commands import record  # noqa: E402
+
+REGISTRY.append(record.register)
+from adaproj_edge.commands import simulate_session  # noqa: E402
+
+REGISTRY.append(simulate_session.register)

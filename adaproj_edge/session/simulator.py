@@ -195,6 +195,8 @@ def simulate_session(
     settings = settings or SimulationSettings()
     if settings.seconds <= 0 or settings.seconds > 600:
         raise InputError(f"--seconds must be in (0, 600], got {settings.seconds}")
+    if not 0 < settings.depth_fps <= 60:
+        raise InputError(f"the depth frame rate must be in (0, 60], got {settings.depth_fps}")
     recs = simulate(scene, calibration, settings)
     meta = {
         "source": "simulator",

@@ -1,0 +1,74 @@
+#!/usr/bin/env python3
+"""Regenerate the committed session fixtures (tests/fixtures/sessions/).
+
+    .venv/bin/python tools/make_fixtures.py            # sessions
+    .venv/bin/python tools/make_fixtures.py --golden   # and the golden replay outputs
+
+Every fixture has a fixed seed, so running this again gives the same files.
+Regenerating is a deliberate act: the tests never write them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from adaproj_edge.geometry.calibration import Calibration  # noqa: E402
+from adaproj_edge.geometry.mesh_surface import ply_bytes, uv_sphere  # noqa: E402
+from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session  # noqa: E402
+
+OUT = ROOT / "tests" / "fixtures" / "sessions"
+SECONDS = 3.0
+DEPTH_FPS = 5.0
+# name -> (surface, seed)
+FIXTURES = {
+    "corner": ("corner", 11),
+    "cylinder": ("cylinder-convex", 12),
+    "sphere": ("sphere-convex", 13),
+    "mesh-sphere": ("mesh-sphere.ply", 14),
+}
+GOLDEN = OUT / "golden.json"
+GRID = (21, 21)
+
+
+def make_sessions() -> None:
+    OUT.mkdir(parents=True, exist_ok=True)
+    mesh = uv_sphere((0.05, 0.0, 1.9), 0.5, n_lat=16, n_lon=32)
+    (OUT / "mesh-sphere.ply").write_bytes(ply_bytes(mesh))
+    for name, (surface, seed) in FIXTURES.items():
+        spec = str(OUT / surface) if surface.endswith(".ply") else surface
+        settings = SimulationSettings(seconds=SECONDS, depth_fps=DEPTH_FPS, seed=seed)
+        n = simulate_session(
+            Scene.load(spec), OUT / f"{name}.mcap", Calibration.default(), settings
+        )
+        size = (OUT / f"{name}.mcap").stat().st_size
+        print(f"{name}.mcap: {n} records, {size / 1e6:.2f} MB")
+
+
+def make_golden() -> None:
+    from tests.session.golden import replay_outputs
+
+    golden = {name: replay_outputs(OUT / f"{name}.mcap", GRID) for name in FIXTURES}
+    GOLDEN.write_text(json.dumps(golden, indent=1) + "\n")
+    print(f"wrote {GOLDEN}")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--golden", action="store_true", help="also rewrite the golden outputs")
+    ap.add_argument("--golden-only", action="store_true", help="only rewrite the golden outputs")
+    args = ap.parse_args()
+    if not args.golden_only:
+        make_sessions()
+    if args.golden or args.golden_only:
+        make_golden()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
