@@ -259,11 +259,10 @@ async def upload(
         return len(data)
     start = off
     retries = 0
-    while True:
-        if progress:
-            progress(off, len(data))
-        if off == len(data) and off > 0:
-            return start
+    acked = -1  # the offset the device last acknowledged; it commits when that is the end
+    if progress:
+        progress(off, len(data))
+    while acked != len(data):
         total = len(data) if off == 0 else None
         probe = FileUploadResumable(name=name, off=off, data=b"", len=total)
         _, room = client.get_max_cbor_and_data_size(probe)
@@ -271,8 +270,10 @@ async def upload(
         request = FileUploadResumable(name=name, off=off, data=chunk, len=total)
         response = await send(client, request, timeout_s)
         if success(response):
-            off = response.off
+            off = acked = response.off
             retries = 0
+            if progress:
+                progress(off, len(data))
             continue
         if (
             isinstance(response, FileUploadErrorV2)
@@ -281,9 +282,14 @@ async def upload(
         ):
             retries += 1
             resumed = await resume_point(client, data, name, timeout_s)
-            off = len(data) if resumed is None else resumed
+            if resumed is None:
+                if progress:
+                    progress(len(data), len(data))
+                break
+            off = resumed
             continue
         raise LinkError(f"upload of {name} refused: {describe(response)}")
+    return start
 
 
 async def download_screenshot(client: SMPClient) -> bytes:

@@ -174,6 +174,18 @@ class ContentStore:
         self.incoming.mkdir(parents=True, exist_ok=True)
         for stale in self.root.glob(".*.tmp"):  # an atomic write cut short by a crash
             stale.unlink(missing_ok=True)
+        self._recover()
+
+    def _recover(self) -> None:
+        """Finish what a crash interrupted: commit whole uploads, drop impossible ones."""
+        for p in self.pending():
+            if p.received > p.total:
+                self._partial(p).unlink(missing_ok=True)
+            elif p.received == p.total:
+                try:
+                    self._commit(p.name, self._partial(p))
+                except InputError as e:
+                    log.warning("dropped the finished upload of %s: %s", p.name, e)
 
     # ---- committed items ------------------------------------------------------
 

@@ -198,3 +198,22 @@ def test_read_and_digest(store: ContentStore) -> None:
     assert store.digest("a.png", "crc32", 3, 20) == (zlib.crc32(data[3:23]), 20)
     with pytest.raises(UploadOffsetError):
         store.read("a.png", len(data) + 1, 5)
+
+
+def test_whole_but_uncommitted_upload_is_committed_on_open(store: ContentStore) -> None:
+    data = png_bytes(32, 32)
+    store.begin("p.png", len(data), data[:50])
+    part = store.incoming / f"{len(data)}.p.png"
+    with part.open("ab") as f:  # the last chunk landed, then the server died before the rename
+        f.write(data[50:])
+    again = ContentStore(store.root)
+    assert (again.root / "p.png").read_bytes() == data and again.pending() == []
+
+
+def test_append_at_the_end_commits(store: ContentStore) -> None:
+    data = png_bytes(32, 32)
+    store.begin("p.png", len(data), data[:50])
+    with (store.incoming / f"{len(data)}.p.png").open("ab") as f:
+        f.write(data[50:])
+    assert store.append("p.png", len(data), b"") == len(data)
+    assert (store.root / "p.png").read_bytes() == data
