@@ -60,7 +60,7 @@ def _pad4(pad: int) -> list[int]:
 
 
 def _level_features(g: _Graph, rgb: str, params: gbvs.GBVSParams) -> str:
-    """(1, 3, h, w) -> (1, 9, h, w), as ``gbvs.level_features``."""
+    """(1, 3, h, w) -> (1, F, h, w), F features per level, as ``gbvs.level_features``."""
     r, gr, b = g.op("Split", [rgb], 3, axis=1)
     intensity = g.one("Div", [g.one("Add", [g.one("Add", [r, gr]), b]), "three"])
     denom = g.one("Max", [g.one("ReduceMax", [rgb], axes=[1], keepdims=1), "colour_floor"])

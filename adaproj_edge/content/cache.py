@@ -79,8 +79,8 @@ class ContentMapper:
     threshold: float = DEFAULT_THRESHOLD
     grid: tuple[int, int] = DEFAULT_GRID
     max_items: int = 8
-    stats: CacheStats = field(default_factory=CacheStats)
-    _items: OrderedDict[str, _Item] = field(default_factory=OrderedDict)
+    stats: CacheStats = field(default_factory=CacheStats, init=False)
+    _items: OrderedDict[str, _Item] = field(default_factory=OrderedDict, init=False, repr=False)
 
     def set_content(self, name: str, image_bgr: NDArray[np.uint8]) -> None:
         """Give item ``name`` its image; the model runs only if the image changed."""

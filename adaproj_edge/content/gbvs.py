@@ -44,11 +44,8 @@ from numpy.typing import NDArray
 
 F32 = NDArray[np.float32]
 
-FEATURES_PER_LEVEL = ("I", "RG", "GR", "BY", "YB", "O0", "O45", "O90", "O135")
-"""Feature maps computed at each pyramid level, in this order."""
-
-CHANNEL_OF_FEATURE = {"I": 0, "RG": 1, "GR": 1, "BY": 1, "YB": 1}
-"""Channel of each feature (0 intensity, 1 colour, 2 orientation for the ``O*`` ones)."""
+COLOUR_FEATURES = ("RG", "GR", "BY", "YB")
+"""The colour-opponency maps computed at each level, after intensity ("I")."""
 
 BINOMIAL_5 = np.array([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
 
@@ -119,7 +116,12 @@ class GBVSParams:
     @property
     def n_maps(self) -> int:
         """Number of feature maps (features per level × levels)."""
-        return len(FEATURES_PER_LEVEL) * len(self.levels)
+        return len(self.feature_names) * len(self.levels)
+
+    @property
+    def feature_names(self) -> tuple[str, ...]:
+        """Names of the maps computed at each level, in order: "I", colour, "O<deg>"."""
+        return ("I", *COLOUR_FEATURES, *(f"O{d:g}" for d in self.orientations_deg))
 
 
 @dataclass(frozen=True)
@@ -197,12 +199,17 @@ def falloff(map_size: tuple[int, int], sigma_frac: float, reflect: float = 0.0) 
     return np.asarray(f, dtype=np.float32)
 
 
+def _channel(feature: str) -> int:
+    """0 intensity, 1 colour, 2 orientation."""
+    return 0 if feature == "I" else 1 if feature in COLOUR_FEATURES else 2
+
+
 def map_weights(params: GBVSParams) -> F32:
     """Weight of each feature map in the final sum, shape ``(1, n_maps)``.
 
     A channel's maps share its weight equally; the weights sum to 1.
     """
-    channel = [CHANNEL_OF_FEATURE.get(f, 2) for f in FEATURES_PER_LEVEL] * len(params.levels)
+    channel = [_channel(f) for f in params.feature_names] * len(params.levels)
     counts = np.bincount(channel, minlength=3)
     cw = np.asarray(params.channel_weights, dtype=np.float64)
     w = np.array([cw[c] / counts[c] for c in channel]) / cw.sum()
@@ -251,7 +258,7 @@ def pyr_down(image: F32, const: Constants) -> F32:
 
 
 def level_features(rgb: F32, params: GBVSParams, const: Constants) -> F32:
-    """The nine feature maps of one pyramid level.
+    """The feature maps of one pyramid level (nine by default).
 
     Parameters
     ----------
@@ -260,8 +267,8 @@ def level_features(rgb: F32, params: GBVSParams, const: Constants) -> F32:
 
     Returns
     -------
-    (9, h, w) float32
-        In the order of :data:`FEATURES_PER_LEVEL`.
+    (len(params.feature_names), h, w) float32
+        In the order of ``params.feature_names``.
     """
     r, g, b = rgb[0], rgb[1], rgb[2]
     intensity = (r + g + b) / np.float32(3.0)
