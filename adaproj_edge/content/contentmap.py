@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+import scipy.ndimage
 from numpy.typing import NDArray
 
 from adaproj_edge.content.model import SaliencyModel
@@ -70,24 +71,22 @@ class ContentMap:
     threshold: float = DEFAULT_THRESHOLD
 
     def sample(self, xy: NDArray[np.floating]) -> NDArray[np.float32]:
-        """Bilinear C at content pixel coordinates ``xy`` (n, 2); 0 outside the content."""
+        """Bilinear C at content pixel coordinates ``xy`` (n, 2); 0 outside the content.
+
+        Map cell centres sit at the centres of the content areas they cover (the same
+        convention as the warp engine's sampler).
+        """
         w, h = self.content_size
         mh, mw = self.values.shape
-        pts = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        mx = (pts[:, 0] + 0.5) * mw / w - 0.5
-        my = (pts[:, 1] + 0.5) * mh / h - 0.5
+        pts = np.nan_to_num(np.asarray(xy, dtype=np.float64).reshape(-1, 2), nan=-1.0)
+        mx = (pts[:, 0] + 0.5) * (mw / w) - 0.5
+        my = (pts[:, 1] + 0.5) * (mh / h) - 0.5
+        vals = scipy.ndimage.map_coordinates(
+            self.values.astype(np.float64), [my, mx], order=1, mode="nearest"
+        )
         inside = (pts[:, 0] >= -0.5) & (pts[:, 0] <= w - 0.5)
         inside &= (pts[:, 1] >= -0.5) & (pts[:, 1] <= h - 0.5)
-        mx = np.clip(np.nan_to_num(mx), 0, mw - 1)
-        my = np.clip(np.nan_to_num(my), 0, mh - 1)
-        x0 = np.minimum(np.floor(mx).astype(int), mw - 2)
-        y0 = np.minimum(np.floor(my).astype(int), mh - 2)
-        fx, fy = mx - x0, my - y0
-        v = self.values.astype(np.float64)
-        top = v[y0, x0] * (1 - fx) + v[y0, x0 + 1] * fx
-        bottom = v[y0 + 1, x0] * (1 - fx) + v[y0 + 1, x0 + 1] * fx
-        out = top * (1 - fy) + bottom * fy
-        return np.where(inside, out, 0.0).astype(np.float32)
+        return np.asarray(np.where(inside, vals, 0.0), dtype=np.float32)
 
     def weights(self, xy: NDArray[np.floating]) -> NDArray[np.float32]:
         """w_a of eq. 5 at content pixel coordinates ``xy`` (n, 2): 1 where C >= T, else 0."""

@@ -7,6 +7,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from adaproj_edge.content.cache import ContentMapper
 from adaproj_edge.content.contentmap import (
@@ -19,6 +21,7 @@ from adaproj_edge.content.contentmap import (
 from adaproj_edge.content.mask import decode_mask, load_mask
 from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.errors import ImageError, InputError, MaskError
+from adaproj_edge.warp.engine import sample_content_map
 from tests.content.displays import colour_popout
 
 
@@ -147,3 +150,25 @@ def test_cache_forgets_the_least_recently_used(model: SaliencyModel) -> None:
     assert "a" not in mapper and "b" in mapper and "c" in mapper
     mapper.forget("b")
     assert "b" not in mapper
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    size=st.tuples(st.integers(2, 400), st.integers(2, 400)),
+    grid=st.integers(2, 30),
+)
+def test_weights_agree_with_the_engines_sampler(
+    seed: int, size: tuple[int, int], grid: int
+) -> None:
+    rng = np.random.default_rng(seed)
+    w, h = size
+    cw, ch = coarse_size(size, (grid, grid))
+    cmap = ContentMap(rng.random((ch, cw)).astype(np.float32), size)
+    xy = rng.uniform(-0.2, 1.2, (200, 2)) * [w, h]
+    s = cmap.sample(xy)
+    assert s.dtype == np.float32 and s.min() >= 0.0 and s.max() <= 1.0
+    engine = sample_content_map(cmap.values, xy, size)
+    np.testing.assert_allclose(s, engine, atol=1e-6)
+    near = np.abs(engine - cmap.threshold) < 1e-5
+    np.testing.assert_array_equal(cmap.weights(xy)[~near], (engine >= cmap.threshold)[~near])
