@@ -111,7 +111,7 @@ def messages(draw: st.DrawFn) -> bytes:
     body = draw(bodies)
     length = draw(st.one_of(st.just(len(body)), st.integers(0, 0xFFFF)))
     header = HEADER.pack(
-        draw(st.sampled_from([0, 2]) | st.integers(0, 255)),  # op | version bits | reserved
+        draw(st.sampled_from([0, 2, 8, 10]) | st.integers(0, 255)),  # op, version, reserved
         draw(st.integers(0, 255)),
         length,
         draw(groups),

@@ -17,7 +17,7 @@ from adaproj_edge.link.store import ContentStore, Limits
 from tests.link.fuzz_cases import dispatch_target, messages, streams, wire_target
 
 FUZZ = settings(
-    max_examples=1500,
+    max_examples=1000,
     deadline=None,
     database=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
