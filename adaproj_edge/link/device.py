@@ -77,6 +77,8 @@ class DeviceRuntime(Protocol):
     ``None``), ``warp`` (the last warp's figures, or ``None``) and ``errors`` (recent
     error messages). ``activate`` raises an :class:`~adaproj_edge.errors.AdaprojError`
     to refuse content. ``frame_png`` is the frame the projector shows now, as PNG.
+    All three are called from the link's thread (the one running
+    :func:`~adaproj_edge.link.server.serve`), one at a time.
     """
 
     def status(self) -> dict[str, Any]: ...

@@ -49,6 +49,8 @@ class SmpError(Exception):
         Set for a group error (``{"err": {...}}``); ``None`` for a management error.
     extra : dict
         More fields for the reply (Zephyr adds ``len`` to an offset error).
+    legacy : int
+        The ``MGMT_ERR`` code a version-1 client gets for a group error.
     """
 
     def __init__(
@@ -58,12 +60,14 @@ class SmpError(Exception):
         *,
         group: int | None = None,
         extra: dict[str, Any] | None = None,
+        legacy: int = MGMT_ERR.EUNKNOWN,
     ) -> None:
         super().__init__(reason)
         self.rc = int(rc)
         self.reason = reason
         self.group = group
         self.extra = extra or {}
+        self.legacy = int(legacy)
 
 
 @dataclass(frozen=True)
@@ -98,7 +102,7 @@ class Request:
         """The error response for ``e``, shaped for this request's version."""
         if e.group is not None and self.version >= 1:
             return self.reply({"err": {"group": e.group, "rc": e.rc}, **e.extra})
-        rc = e.rc if e.group is None else int(MGMT_ERR.EUNKNOWN)
+        rc = e.rc if e.group is None else e.legacy
         return self.reply({"rc": rc, "rsn": e.reason})
 
 

@@ -169,7 +169,9 @@ class Server:
         fs = req.group == FS
         if isinstance(e, ContentNotFoundError):
             if fs:
-                return SmpError(FS_MGMT_ERR.FILE_NOT_FOUND, str(e), group=FS)
+                return SmpError(
+                    FS_MGMT_ERR.FILE_NOT_FOUND, str(e), group=FS, legacy=MGMT_ERR.ENOENT
+                )
             return SmpError(MGMT_ERR.ENOENT, str(e))
         if isinstance(e, UploadOffsetError):
             if fs and req.op == Op.READ:
@@ -230,7 +232,12 @@ class Server:
         off = optional(req.body, "off", int) or 0
         size = optional(req.body, "len", int)
         if kind not in HASH_TYPES:
-            raise SmpError(FS_MGMT_ERR.CHECKSUM_HASH_NOT_FOUND, f"no hash {kind!r}", group=FS)
+            raise SmpError(
+                FS_MGMT_ERR.CHECKSUM_HASH_NOT_FOUND,
+                f"no hash {kind!r}; use sha256 or crc32",
+                group=FS,
+                legacy=MGMT_ERR.EINVAL,
+            )
         total = self.store.path(name).stat().st_size
         if total == 0:
             raise SmpError(FS_MGMT_ERR.FILE_EMPTY, f"{name} is empty", group=FS)
@@ -297,7 +304,7 @@ class Server:
         return {
             "device": self.device.status(),
             "store": {
-                "items": len(self.store.items()),
+                "items": len(self.store.sizes()),
                 "used": self.store.used(),
                 "quota": self.store.limits.quota,
             },

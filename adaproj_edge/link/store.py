@@ -21,6 +21,7 @@ import json
 import logging
 import os
 import re
+import stat
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -197,26 +198,35 @@ class ContentStore:
             raise ContentNotFoundError(f"no item {name!r} on the device")
         return p
 
-    def items(self) -> list[ItemInfo]:
-        """Every committed item, by name."""
-        out = []
+    def sizes(self) -> dict[str, int]:
+        """Name and size of every committed item (from ``stat`` alone)."""
+        out = {}
         for p in sorted(self.root.iterdir()):
-            if p.name.startswith(".") or not p.is_file():
-                continue
             try:
                 check_name(p.name)
-                with p.open("rb") as f:
-                    head = f.read(65536)
-                size = p.stat().st_size
+                st = p.stat()
             except (ContentError, OSError):
                 continue
+            if stat.S_ISREG(st.st_mode):
+                out[p.name] = st.st_size
+        return out
+
+    def items(self) -> list[ItemInfo]:
+        """Every committed item, by name, with its pixel size read from its header."""
+        out = []
+        for name, size in self.sizes().items():
+            try:
+                with (self.root / name).open("rb") as f:
+                    head = f.read(65536)
+            except OSError:
+                continue
             w, h = header_size(head) or (0, 0)
-            out.append(ItemInfo(p.name, size, w, h))
+            out.append(ItemInfo(name, size, w, h))
         return out
 
     def used(self) -> int:
         """Bytes counted against the quota: items plus declared pending sizes."""
-        return sum(i.size for i in self.items()) + sum(p.total for p in self.pending())
+        return sum(self.sizes().values()) + sum(p.total for p in self.pending())
 
     def read(self, raw: str, off: int, size: int) -> tuple[bytes, int]:
         """Up to ``size`` bytes of an item from ``off``, and the item's length."""
@@ -296,7 +306,7 @@ class ContentStore:
         old = self.pending_for(name)
         if old is not None:
             self._partial(old).unlink(missing_ok=True)
-        items = {i.name: i.size for i in self.items()}
+        items = self.sizes()
         if name not in items and len(items) >= lim.max_items:
             raise QuotaError(f"the device holds {len(items)} items, the most it keeps")
         used = sum(items.values()) - items.get(name, 0) + sum(p.total for p in self.pending())

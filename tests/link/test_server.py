@@ -84,7 +84,7 @@ def test_file_errors_are_group_errors(server: Server) -> None:
 
 def test_version_1_requests_get_rc_and_reason(server: Server) -> None:
     r = answer(server, raw(0, 8, 1, cbor2.dumps({"name": "nope.png"}), version=0))
-    assert r["rc"] == MGMT_ERR.EUNKNOWN and "no item" in r["rsn"]
+    assert r["rc"] == MGMT_ERR.ENOENT and "no item" in r["rsn"]
 
 
 def test_refusals_are_clear_and_write_nothing(server: Server) -> None:
