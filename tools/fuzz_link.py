@@ -28,6 +28,7 @@ import resource
 import sys
 import tempfile
 import time
+import tracemalloc
 from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
@@ -47,6 +48,12 @@ def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
+def ours_kb() -> float:
+    """KiB held now by allocations made in adaproj_edge (the server, store, decoder)."""
+    snap = tracemalloc.take_snapshot().filter_traces([tracemalloc.Filter(True, "*adaproj_edge*")])
+    return sum(s.size for s in snap.statistics("filename")) / 1024
+
+
 def run_target(name: str, n: int, rng_seed: int, root: Path) -> None:
     store = ContentStore(root / name, Limits(quota=2**20, max_file=2**19))
     server = Server(store, StandaloneDevice(64, 40), buf_size=2048)
@@ -62,7 +69,11 @@ def run_target(name: str, n: int, rng_seed: int, root: Path) -> None:
         slowest[0] = max(slowest[0], time.perf_counter() - t0)
         count[0] += 1
         if count[0] in marks:
-            print(f"  {name}: {count[0]:>7d} inputs, peak RSS {peak_rss_mb():7.1f} MB", flush=True)
+            print(
+                f"  {name}: {count[0]:>7d} inputs, held by adaproj_edge {ours_kb():7.1f} KiB, "
+                f"process peak RSS {peak_rss_mb():6.1f} MB (hypothesis's own records grow)",
+                flush=True,
+            )
 
     config = settings(
         max_examples=n,
@@ -103,6 +114,7 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     logging.disable(logging.WARNING)  # every refusal is logged; millions of lines otherwise
+    tracemalloc.start(1)
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory() as tmp:
         for name in ("wire", "dispatch"):
