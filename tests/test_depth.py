@@ -161,3 +161,22 @@ def test_is_still() -> None:
 
 def test_surface_names_exist() -> None:
     assert get_surface("corner").name == "corner"
+
+
+def test_smooth_lattice_keeps_planes_and_creases_and_removes_noise() -> None:
+    from adaproj_edge.geometry.depth import smooth_lattice
+
+    rows, cols = 40, 60
+    v, u = np.mgrid[0:rows, 0:cols].astype(float)
+    plane = 1.0 / (0.6 + 0.002 * u - 0.001 * v)  # inverse depth affine: a plane
+    assert np.allclose(smooth_lattice(plane, 2.0), plane, rtol=1e-9)
+    crease = 1.5 - 0.01 * np.abs(u - 30.4)  # a V seen from inside a corner
+    out = smooth_lattice(crease, 2.0)
+    assert np.abs(out - crease).max() < 0.004
+    rng = np.random.default_rng(0)
+    noisy = plane + rng.normal(scale=0.003, size=plane.shape)
+    assert np.std(smooth_lattice(noisy, 2.0) - plane) < 0.4 * 0.003
+    holes = plane.copy()
+    holes[10:12, 10:12] = np.nan
+    assert np.isnan(smooth_lattice(holes, 2.0)[10:12, 10:12]).all()
+    assert smooth_lattice(plane, 0.3) is plane  # too little to smooth

@@ -13,8 +13,11 @@ Steps (:func:`estimate_surface`):
    P-D baseline is a few centimetres, so this converges in a few steps). This
    back-projects, transforms to frame P and resamples in projector space at once,
    and keeps creases sharp;
-4. isolated spikes on the lattice are rejected, small holes (not touching the frame
-   border) are filled from their neighbours;
+4. this is done on a lattice fine enough to use the data between coarse nodes
+   (:func:`supersampling`); isolated spikes are rejected, the surface is smoothed at a
+   scale of ``smooth_m`` by a local quadratic fit in side windows that keeps creases
+   (:func:`smooth_lattice`), and the requested lattice is taken from it; small holes
+   (not touching the frame border) are filled from their neighbours;
 5. every node gets a confidence in [0, 1] from support, the stereo noise expected at
    its depth (grows with z^2), the viewing angle, and whether it was filled.
 
@@ -54,6 +57,9 @@ class DepthSettings:
     disparity_sigma_px: float = 0.1
     sigma_ref_m: float = 0.02
     spike_rel: float = 0.02
+    smooth_m: float = 0.06
+    smooth_max_nodes: float = 3.0
+    max_supersample: int = 4
 
 
 @dataclass(frozen=True)
@@ -191,6 +197,80 @@ def intersect_rays(
     return np.where(ok, s, np.nan), np.where(ok, sup_at, 0.0)
 
 
+def smooth_lattice(
+    s: FloatArray, sigma_nodes: float, min_weight: float = 3.0, switch: float = 3.0
+) -> FloatArray:
+    """Local quadratic regression of inverse depth over the lattice (rows, cols), in
+    side windows so that creases and steps stay sharp.
+
+    For each node a quadratic in the lattice coordinates is fitted to ``1 / s`` of its
+    neighbours (Gaussian weights of ``sigma_nodes``) in five windows: the whole
+    neighbourhood and its left, right, upper and lower halves. The whole window is
+    used unless one half fits ``switch`` times better (the node is next to a crease,
+    where only the half on its own side belongs to its face). Inverse depth is affine
+    in image coordinates on a plane, so walls stay exact; quadrics (spheres,
+    cylinders, bowls) are followed up to third-order terms. Nodes without enough
+    neighbours keep their value; unknown nodes stay unknown.
+    """
+    if sigma_nodes < 0.5:
+        return s
+    rows, cols = s.shape
+    r = int(np.ceil(2 * sigma_nodes))
+    valid = np.isfinite(s) & (s > 0)
+    q = np.where(valid, 1.0 / np.where(valid, s, 1.0), 0.0)
+    qp = np.pad(q, r)
+    mp = np.pad(valid.astype(np.float64), r)
+    offsets = [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1)]
+
+    def windows(dy: int, dx: int) -> list[int]:
+        # 0 whole, 1 left, 2 right, 3 up, 4 down
+        return [0] + [i for i, ok in ((1, dx <= 0), (2, dx >= 0), (3, dy <= 0), (4, dy >= 0)) if ok]
+
+    def terms(dy: int, dx: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+        g = np.exp(-(dy * dy + dx * dx) / (2 * sigma_nodes**2))
+        qs = qp[r + dy : r + dy + rows, r + dx : r + dx + cols]
+        w = g * mp[r + dy : r + dy + rows, r + dx : r + dx + cols]
+        x, y = dx / r, dy / r
+        return qs, w, np.array([1.0, x, y, x * x, x * y, y * y])
+
+    A = np.zeros((5, rows, cols, 6, 6))
+    b = np.zeros((5, rows, cols, 6))
+    wsum = np.zeros((5, rows, cols))
+    for dy, dx in offsets:
+        qs, w, phi = terms(dy, dx)
+        for k in windows(dy, dx):
+            A[k] += w[..., None, None] * np.outer(phi, phi)
+            b[k] += (w * qs)[..., None] * phi
+            wsum[k] += w
+    ok = valid[None] & (wsum >= min_weight)
+    A[~ok] = np.eye(6)
+    b[~ok] = 0.0
+    coef = np.linalg.solve(A + 1e-9 * np.eye(6), b[..., None])[..., 0]  # (5, rows, cols, 6)
+    rss = np.zeros((5, rows, cols))
+    for dy, dx in offsets:
+        qs, w, phi = terms(dy, dx)
+        for k in windows(dy, dx):
+            rss[k] += w * (qs - coef[k] @ phi) ** 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rss = np.where(ok, rss / wsum, np.inf)
+    side = 1 + np.argmin(rss[1:], axis=0)
+    best_side = np.take_along_axis(rss[1:], (side - 1)[None], axis=0)[0]
+    choice = np.where(rss[0] > switch * best_side, side, 0)
+    choice = np.where(ok[0], choice, np.where(ok.any(axis=0), np.argmax(ok, axis=0), -1))
+    qf = np.take_along_axis(coef[..., 0], np.maximum(choice, 0)[None], axis=0)[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(valid & (choice >= 0) & (qf > 0), 1.0 / qf, np.where(valid, s, np.nan))
+
+
+def node_spacing_m(projector: Projector, shape: tuple[int, int], depth_m: float) -> float:
+    """Distance between neighbouring lattice nodes on a surface ``depth_m`` away."""
+    rows, cols = shape
+    step_px = min(
+        (projector.width - 1) / max(cols - 1, 1), (projector.height - 1) / max(rows - 1, 1)
+    )
+    return depth_m * step_px / float(projector.K[0, 0])
+
+
 def reject_spikes(s: FloatArray, rel: float) -> FloatArray:
     """Drop nodes that stick out of their neighbours in every direction (rows, cols)."""
     p = np.pad(s, 1, constant_values=np.nan)
@@ -297,14 +377,32 @@ def estimate_surface(
     zs, support = smooth_depth(clean_depth(z, settings), settings.smooth_sigma_px)
     p = calibration.projector
     dirs = p.rays(lattice_uv(p, shape))
-    s, sup = intersect_rays(dirs, zs, support, calibration, settings)
+    k = supersampling(p, shape, zs, settings)
+    fine = ((shape[0] - 1) * k + 1, (shape[1] - 1) * k + 1)
+    s, sup = intersect_rays(p.rays(lattice_uv(p, fine)), zs, support, calibration, settings)
     s = reject_spikes(s, settings.spike_rel)
+    if np.isfinite(s).any():
+        spacing = node_spacing_m(p, fine, float(np.nanmedian(s)))
+        sigma = min(settings.smooth_m / spacing, settings.smooth_max_nodes)
+        s = smooth_lattice(s, sigma)
+    s, sup = s[::k, ::k], sup[::k, ::k]
     s, filled = fill_holes(s, settings.max_hole_nodes)
     points = dirs * s[..., None]
     conf = node_confidence(points, np.where(filled, 0.5, sup), filled, calibration, settings)
     surface = Surface(points.astype(np.float32), p, {"source": "depth"})
     est = SurfaceEstimate(surface, conf, filled & np.isfinite(s))
     return replace(est, surface=replace(surface, meta={"source": "depth", **est.summary()}))
+
+
+def supersampling(
+    projector: Projector, shape: tuple[int, int], zs: FloatArray, settings: DepthSettings
+) -> int:
+    """How many times finer than ``shape`` to sample, so that nodes are at most
+    ``smooth_m / 2`` apart on the surface (1 for fine lattices, at most 4)."""
+    good = zs[np.isfinite(zs)]
+    z = float(np.median(good)) if good.size else 1.5
+    k = np.ceil(node_spacing_m(projector, shape, z) / (settings.smooth_m / 2))
+    return int(np.clip(k, 1, settings.max_supersample))
 
 
 def dense_shape(projector: Projector, step: int = 4) -> tuple[int, int]:
