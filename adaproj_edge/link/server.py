@@ -51,7 +51,7 @@ from adaproj_edge.link.message import (
     optional,
     parse_header,
 )
-from adaproj_edge.link.store import ActiveRecord, ContentStore
+from adaproj_edge.link.store import ActiveRecord, ContentStore, check_name
 
 log = logging.getLogger(__name__)
 
@@ -212,8 +212,14 @@ class Server:
             total = optional(req.body, "len", int)
             if total is None:
                 raise SmpError(MGMT_ERR.EINVAL, "field 'len' is required when 'off' is 0")
-            return {"off": self.store.begin(name, total, data)}
-        return {"off": self.store.append(name, off, data)}
+            received = self.store.begin(name, total, data)
+        else:
+            received = self.store.append(name, off, data)
+        pending = self.store.pending_for(name)
+        active = self.store.active()
+        if pending is None and active is not None and check_name(name) in active.items():
+            self.restore_active()  # a new version of what is shown: show it
+        return {"off": received}
 
     def _download(self, req: Request) -> dict[str, Any]:
         off = field(req.body, "off", int)

@@ -106,6 +106,10 @@ class ActiveRecord:
     def to_json(self) -> dict[str, Any]:
         return {"image": self.image, "mask": self.mask, "settings": self.settings}
 
+    def items(self) -> tuple[str, ...]:
+        """The store items it uses."""
+        return (self.image,) if self.mask is None else (self.image, self.mask)
+
 
 def check_name(raw: str) -> str:
     """The store name for a client's ``raw`` name, or :class:`ContentError`.
@@ -263,7 +267,7 @@ class ContentStore:
         """Remove a committed item (refused while it is active)."""
         p = self.path(raw)
         active = self.active()
-        if active is not None and p.name in (active.image, active.mask):
+        if active is not None and p.name in active.items():
             raise ContentError(f"{p.name!r} is being shown; activate something else first")
         p.unlink()
         fsync_dir(self.root)

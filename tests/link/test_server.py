@@ -153,3 +153,11 @@ def test_responses_and_short_messages_are_ignored(server: Server) -> None:
     assert server.handle(raw(1, 0, 0, b"")) is None
     assert server.handle(raw(3, 0, 0, b"")) is None
     assert server.counters["ignored"] == 3
+
+
+def test_new_version_of_the_shown_image_is_shown(server: Server) -> None:
+    upload(server, "a.png", png_bytes(60, 40, seed=1))
+    ask(server, ActivateWrite(image="a.png"))
+    before = ask(server, ScreenshotRead(off=0))["data"]
+    upload(server, "a.png", png_bytes(60, 40, seed=2))
+    assert ask(server, ScreenshotRead(off=0))["data"] != before
