@@ -36,12 +36,13 @@ def run(args: argparse.Namespace) -> int:
     board = Board.load(args.board)
     clock = MonotonicClock()
     calibration = board.calibration()
-    depth = OakDepthCamera(board.depth, clock)
-    calibration = calibration.with_depth(depth.model)
+    # the quick checks first: a missing IMU or button is reported before the OAK-D boots
     bus = open_i2c(board.imu.bus)
     imu = Lsm6dsox(bus, clock, board.imu.address, board.imu.config, f"/dev/i2c-{board.imu.bus}")
     imu.start()
     button = EvdevButton(board.button_device, board.key_code, clock)
+    depth = OakDepthCamera(board.depth, clock)
+    calibration = calibration.with_depth(depth.model)
     meta = {"source": "device", "board": board.name}
     writer = SessionWriter(args.out, calibration, meta, clock.now_ns())
     rec = Recorder(writer, clock)
