@@ -32,6 +32,9 @@ class Op(IntEnum):
     WRITE_RSP = 3
 
 
+MAX_BODY = 0xFFFF - 2 - HEADER.size
+"""Largest reply body: a serial frame holds 65535 bytes with its CRC."""
+
 MAX_DEPTH = 4
 """Deepest nesting accepted in a request body (settings are a map in a map)."""
 
@@ -83,8 +86,10 @@ class Request:
     body: dict[str, Any]
 
     def reply(self, body: dict[str, Any]) -> bytes:
-        """The response message carrying ``body``."""
+        """The response message carrying ``body``; :class:`SmpError` if it cannot fit."""
         data = cbor2.dumps(body)
+        if len(data) > MAX_BODY:
+            raise SmpError(MGMT_ERR.EMSGSIZE, f"the reply would be {len(data)} bytes")
         op = Op.READ_RSP if self.op == Op.READ else Op.WRITE_RSP
         return (
             HEADER.pack(

@@ -11,7 +11,13 @@ from smp import os_management as smpos
 from smp.error import MGMT_ERR
 from smp.file_management import FS_MGMT_ERR
 
-from adaproj_edge.link.client import ActivateWrite, DeleteWrite, ListRead, ScreenshotRead
+from adaproj_edge.link.client import (
+    ActivateWrite,
+    DeleteWrite,
+    ListRead,
+    ScreenshotRead,
+    StatusRead,
+)
 from adaproj_edge.link.ids import ADAPROJ_GROUP
 from adaproj_edge.link.message import HEADER
 from adaproj_edge.link.server import Server
@@ -161,3 +167,12 @@ def test_new_version_of_the_shown_image_is_shown(server: Server) -> None:
     before = ask(server, ScreenshotRead(off=0))["data"]
     upload(server, "a.png", png_bytes(60, 40, seed=2))
     assert ask(server, ScreenshotRead(off=0))["data"] != before
+
+
+def test_a_reply_too_big_for_a_frame_is_an_error(server: Server) -> None:
+    class Chatty:
+        def status(self) -> dict[str, Any]:
+            return {"log": "x" * 70_000}
+
+    server.device = Chatty()  # type: ignore[assignment]
+    assert ask(server, StatusRead())["rc"] == MGMT_ERR.EMSGSIZE
