@@ -129,17 +129,25 @@ def in_mask(d: Distortion, mask: NDArray[np.floating]) -> NDArray[np.bool_]:
     return np.asarray(mask[y, x] >= 0.5)
 
 
-def visible_fraction(
-    map_xy: NDArray[np.float32], content_size: tuple[int, int], step: int = 2
-) -> float:
-    """Fraction of the content's pixels that some displayed triangle covers."""
+def visible_fraction(map_xy: NDArray[np.float32], content_size: tuple[int, int]) -> float:
+    """Fraction of the content's pixels that the projector displays.
+
+    A content pixel is displayed when a projector pixel shows it, or when it lies
+    inside a triangle of neighbouring displayed pixels (where the content is shown
+    smaller than its own pixels: shrunk, not lost).
+    """
     w, h = content_size
     canvas = np.zeros((h, w), dtype=np.uint8)
-    m = map_xy[::step, ::step].astype(np.float64)
-    quads = [m[:-1, :-1], m[:-1, 1:], m[1:, 1:], m[1:, :-1]]
+    m = map_xy.reshape(-1, 2)
+    m = m[np.isfinite(m).all(axis=1)]
+    x = np.clip(np.rint(m[:, 0]).astype(int), 0, w - 1)
+    y = np.clip(np.rint(m[:, 1]).astype(int), 0, h - 1)
+    canvas[y, x] = 1
+    g = map_xy.astype(np.float64)
+    quads = [g[:-1, :-1], g[:-1, 1:], g[1:, 1:], g[1:, :-1]]
     for tri in ((0, 1, 2), (0, 2, 3)):
         pts = np.stack([quads[k] for k in tri], axis=2).reshape(-1, 3, 2)
-        ok = np.isfinite(pts).all(axis=(1, 2))
-        q = np.rint((pts[ok] + 0.5) * 16).astype(np.int32)
+        pts = pts[np.isfinite(pts).all(axis=(1, 2))]
+        q = np.rint(pts * 16).astype(np.int32)
         cv2.fillPoly(canvas, list(q), 1, lineType=cv2.LINE_8, shift=4)
     return float(canvas.mean())

@@ -3,12 +3,14 @@
 Paper §4.1: the content rectangle becomes the maximal inscribed rectangle (same aspect
 ratio, upright) of the region the warped mesh covers, so no content is ever lost.
 
-The region (union of triangles, holes included) is rasterised with the aspect ratio
-folded into the y axis, so the wanted rectangle becomes a square; the largest square
-inside a raster region centred on a pixel has half-side equal to that pixel's
-chessboard (L-infinity) distance to the outside, which ``cv2.distanceTransform``
-gives exactly. The raster is eroded by one pixel first, so the result lies inside
-the region.
+With the aspect ratio folded into the y axis the wanted rectangle is a square, and the
+largest square centred at a point c inside the region has half-side
+``r(c) = min over boundary edges of the L-infinity distance from c to the edge`` (the
+region's boundary, holes included, is the set of mesh edges that belong to one
+triangle only). The search starts from a coarse raster (the pixel with the largest
+chessboard distance to the outside, from ``cv2.distanceTransform``) and then climbs
+``r(c)`` exactly with a shrinking pattern search, so the result is exact, not limited by
+the raster, and inside the region by construction.
 """
 
 from __future__ import annotations
@@ -17,12 +19,18 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.projector import FloatArray
 
-RASTER = 1024
+IntArray = NDArray[np.intp]
+
+RASTER = 256
 _SHIFT = 4
+_DIRECTIONS = np.array(
+    [[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=np.float64
+)
 
 
 @dataclass(frozen=True)
@@ -35,61 +43,92 @@ class Rect:
     height: float
 
 
-def coverage_raster(
-    triangles: FloatArray, aspect: float, size: int = RASTER
-) -> tuple[np.ndarray, float, float, float]:
-    """Rasterise triangles (T, 3, 2) with y scaled by ``aspect`` (= width / height).
+def boundary_edges(tris: IntArray) -> IntArray:
+    """Edges (E, 2) that belong to exactly one of the triangles ``tris`` (T, 3)."""
+    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    e = np.sort(e, axis=1)
+    uniq, counts = np.unique(e, axis=0, return_counts=True)
+    out: IntArray = uniq[counts == 1]
+    return out
 
-    Returns the mask (uint8), the raster cell size and the origin (x, y') of the raster.
-    """
-    pts = triangles.reshape(-1, 2).copy()
-    pts[:, 1] *= aspect
-    lo = pts.min(axis=0)
-    hi = pts.max(axis=0)
+
+def linf_clearance(c: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
+    """L-infinity distance from points ``c`` (..., 2) to the segments p0-p1 (E, 2),
+    minimised over the segments: (...)."""
+    a = p0[None, :, :] - c.reshape(-1, 1, 2)  # (N, E, 2): segment start relative to c
+    d = (p1 - p0)[None, :, :]
+    # f(t) = max(|a_x + t d_x|, |a_y + t d_y|) is convex and piecewise linear in t: its
+    # minimum over [0, 1] is at an end or where |a_x + t d_x| = |a_y + t d_y|.
+    ax, ay, dx, dy = a[..., 0], a[..., 1], d[..., 0], d[..., 1]
+    best = np.minimum(
+        np.maximum(np.abs(ax), np.abs(ay)), np.maximum(np.abs(ax + dx), np.abs(ay + dy))
+    )
+    for num, den in ((ay - ax, dx - dy), (-(ax + ay), dx + dy)):
+        ok = np.abs(den) > 1e-300
+        t = np.clip(num / np.where(ok, den, 1.0), 0.0, 1.0)
+        f = np.maximum(np.abs(ax + t * dx), np.abs(ay + t * dy))
+        best = np.minimum(best, np.where(ok, f, np.inf))
+    out: FloatArray = best.min(axis=1).reshape(c.shape[:-1])
+    return out
+
+
+def _raster_start(v: FloatArray, tris: IntArray, resolution: int) -> tuple[FloatArray, float]:
+    """Centre (2,) of the largest square in a raster of the region, and the cell size."""
+    lo = v.min(axis=0)
+    hi = v.max(axis=0)
     extent = float(np.max(hi - lo))
     if not np.isfinite(extent) or extent <= 0:
         raise WarpError("the warped mesh has no area")
-    cell = extent / (size - 3)
+    cell = extent / (resolution - 3)
     origin = lo - 1.5 * cell
     shape = (int(np.ceil((hi[1] - lo[1]) / cell)) + 4, int(np.ceil((hi[0] - lo[0]) / cell)) + 4)
     mask = np.zeros(shape, dtype=np.uint8)
-    q = np.rint((pts - origin) / cell * (1 << _SHIFT)).astype(np.int32).reshape(-1, 3, 2)
+    q = np.rint((v[tris] - origin) / cell * (1 << _SHIFT)).astype(np.int32)
     cv2.fillPoly(mask, list(q), 1, lineType=cv2.LINE_8, shift=_SHIFT)
-    return mask, cell, float(origin[0]), float(origin[1])
+    dist = cv2.distanceTransform(mask, cv2.DIST_C, 3)
+    _, best, _, loc = cv2.minMaxLoc(dist)
+    if best < 1:
+        raise WarpError("the covered region is too small to place the content")
+    return origin + cell * np.array(loc, dtype=np.float64), cell
 
 
 def inscribed_rectangle(
-    triangles: FloatArray, aspect: float, prefer: FloatArray | None = None
+    v: FloatArray,
+    tris: IntArray,
+    aspect: float,
+    resolution: int = RASTER,
+    boundary: IntArray | None = None,
 ) -> Rect:
-    """Largest rectangle of ``aspect`` (width / height) inside the union of ``triangles``.
+    """Largest rectangle of ``aspect`` (width / height) inside the union of triangles.
 
     Parameters
     ----------
-    triangles : (T, 3, 2) float array
-        The covered region, as triangles (holes are simply absent triangles).
+    v : (n, 2) float array
+        Vertex positions.
+    tris : (T, 3) int array
+        The triangles covering the region (holes are absent triangles).
     aspect : float
         Width over height of the wanted rectangle.
-    prefer : (2,) float array, optional
-        Among equally large rectangles, the one whose centre is nearest this point.
+    resolution : int
+        Raster of the starting point (the result does not depend on it except through
+        which local optimum the search climbs).
+    boundary : (E, 2) int array, optional
+        :func:`boundary_edges` of ``tris``, when the caller has it already.
     """
-    if triangles.size == 0:
+    if tris.size == 0:
         raise WarpError("no surface triangles to place the content on")
-    mask, cell, ox, oy = coverage_raster(triangles, aspect)
-    mask = cv2.erode(mask, np.ones((3, 3), np.uint8))
-    dist = cv2.distanceTransform(mask, cv2.DIST_C, 3)
-    best = float(dist.max())
-    if best < 2:
-        raise WarpError("the covered region is too small to place the content")
-    rows, cols = np.nonzero(dist >= best)
-    if prefer is not None and rows.size > 1:
-        px = (prefer[0] - ox) / cell
-        py = (prefer[1] * aspect - oy) / cell
-        k = int(np.argmin((cols - px) ** 2 + (rows - py) ** 2))
-    else:
-        k = 0
-    r0, c0 = float(rows[k]), float(cols[k])
-    half = best - 1.0  # pixel centres within chessboard distance best-1 are inside
-    side = 2.0 * half * cell
-    x0 = ox + (c0 - half) * cell
-    y0p = oy + (r0 - half) * cell
-    return Rect(x0, y0p / aspect, side, side / aspect)
+    q = v * np.array([1.0, aspect])  # the wanted rectangle becomes a square
+    edges = boundary_edges(tris) if boundary is None else boundary
+    p0, p1 = q[edges[:, 0]], q[edges[:, 1]]
+    c, step = _raster_start(q, tris, resolution)
+    r = float(linf_clearance(c, p0, p1))
+    tol = 1e-4 * float(np.max(np.ptp(q, axis=0)))
+    while step > tol:
+        trial = c + step * _DIRECTIONS
+        rt = linf_clearance(trial, p0, p1)
+        k = int(np.argmax(rt))
+        if rt[k] > r:
+            c, r = trial[k], float(rt[k])
+        else:
+            step *= 0.5
+    return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)

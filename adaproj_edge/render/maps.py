@@ -88,7 +88,9 @@ def _perspective(warp: Warp, cells: _PixelCells) -> FloatArray:
     ld = np.where(up, 0.0, fy - fx)
     le = np.where(up, fy, fx)
     if warp.depth is not None:
-        inv_z = 1.0 / warp.depth.reshape(-1)
+        # a vertex without surface gets weight 0, not NaN: it may be the one vertex of
+        # the cell that is not in the pixel's triangle
+        inv_z = np.nan_to_num(1.0 / warp.depth.reshape(-1), nan=0.0)
     else:
         inv_z = np.ones(cells.rows * cols)
     wa, wb, wd, we = la * inv_z[a], lb * inv_z[b], ld * inv_z[d], le * inv_z[e]

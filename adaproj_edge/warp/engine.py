@@ -16,8 +16,9 @@ Modes
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, Protocol
 
 import numpy as np
 import scipy.ndimage
@@ -36,6 +37,23 @@ from adaproj_edge.warp.solve import (
     solve_conformal,
     solve_content_free,
 )
+
+
+class StepSolver(Protocol):
+    def step(self, v: FloatArray, w: FloatArray) -> FloatArray: ...
+
+
+@dataclass(frozen=True)
+class Backend:
+    """The three solves; :data:`FAST` is the product, the reference backend in
+    :mod:`adaproj_edge.warp.reference` the yardstick."""
+
+    conformal: Callable[[MeshGeometry], FloatArray]
+    content_free: Callable[[MeshGeometry, FloatArray, float], tuple[FloatArray, FloatArray]]
+    content_aware: Callable[[MeshGeometry, ContentAwareWeights], StepSolver]
+
+
+FAST = Backend(solve_conformal, solve_content_free, ContentAwareSolver)
 
 Mode = Literal["content", "conformal", "standard"]
 MODES: tuple[Mode, ...] = ("content", "conformal", "standard")
@@ -111,6 +129,7 @@ def compute_warp(
     content_size: tuple[int, int],
     content_map: NDArray[np.floating] | None = None,
     settings: WarpSettings | None = None,
+    backend: Backend = FAST,
 ) -> Warp:
     """The warp for ``surface`` and content of ``content_size`` (w, h) pixels.
 
@@ -134,25 +153,23 @@ def compute_warp(
     if settings.mode == "standard":
         return standard_warp(surface, content_size, settings.grid)
     surface.check_usable()
-    timings: dict[str, float] = {}
+    timings: dict[str, Any] = {}
     t0 = time.perf_counter()
     mesh = MeshGeometry.build(surface, settings.grid)
-    v = solve_conformal(mesh)
+    v = backend.conformal(mesh)
     timings["conformal"] = time.perf_counter() - t0
     iterations = 0
     salient_fraction = 0.0
     if settings.mode == "content":
-        t1 = time.perf_counter()
-        v, s = solve_content_free(mesh, v, settings.lam)
+        v, _ = backend.content_free(mesh, v, settings.lam)
         placement = place(mesh, v, content_size, settings.up)
         timings["init"] = time.perf_counter() - t0
         t2 = time.perf_counter()
         if content_map is not None:
             v, placement, iterations, salient_fraction = refine(
-                mesh, v, s, placement, content_map, content_size, settings
+                mesh, v, placement, content_map, content_size, settings, backend, timings
             )
         timings["refine"] = time.perf_counter() - t2
-        del t1
     else:
         placement = place(mesh, v, content_size, settings.up)
     timings["total"] = time.perf_counter() - t0
@@ -164,20 +181,23 @@ def compute_warp(
 def refine(
     mesh: MeshGeometry,
     v: FloatArray,
-    s: FloatArray,
     placement: Placement,
     content_map: NDArray[np.floating],
     content_size: tuple[int, int],
     settings: WarpSettings,
+    backend: Backend = FAST,
+    timings: dict[str, Any] | None = None,
 ) -> tuple[FloatArray, Placement, int, float]:
     """The content-aware alternation (Algorithm 1, our energy); returns the final
     positions, their placement, the number of steps and the salient vertex fraction."""
     if content_map.ndim != 2:
         raise InputError(f"content map must be a 2D array, got shape {content_map.shape}")
-    solver: ContentAwareSolver | None = None
+    solver: StepSolver | None = None
     iterations = 0
     fraction = 0.0
+    steps: list[float] = []
     for _ in range(settings.max_iterations):
+        t0 = time.perf_counter()
         xy = placement.apply(v)
         w = (sample_content_map(content_map, xy, content_size) >= settings.threshold).astype(
             np.float64
@@ -186,16 +206,19 @@ def refine(
         if w.min() == w.max():  # nothing or everything salient: E' already is the answer
             break
         if solver is None:
-            solver = ContentAwareSolver(mesh, settings.weights)
-        v_new, s_new = solver.step(v, s, w)
+            solver = backend.content_aware(mesh, settings.weights)
+        v_new = solver.step(v, w)
         if not _orientation_ok(mesh, v_new):
             break  # keep the last fold-free iterate
         new_placement = place(mesh, v_new, content_size, settings.up)
         motion = float(np.mean(np.linalg.norm(new_placement.apply(v_new) - xy, axis=1)))
-        v, s, placement = v_new, s_new, new_placement
+        v, placement = v_new, new_placement
         iterations += 1
+        steps.append(time.perf_counter() - t0)
         if motion < settings.tolerance:
             break
+    if timings is not None:
+        timings["iterations"] = steps
     return v, placement, iterations, fraction
 
 
@@ -217,7 +240,7 @@ def _make_warp(
     settings: WarpSettings,
     iterations: int,
     salient_fraction: float,
-    timings: dict[str, float],
+    timings: dict[str, Any],
 ) -> Warp:
     if not _orientation_ok(mesh, v):
         raise WarpError("the warp folds over; the surface is too irregular for this grid")

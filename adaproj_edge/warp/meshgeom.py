@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.creases import unfold_creases
 from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.geometry.rectangle import boundary_edges
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import conformal_coords, grid_triangles, triangle_normals
 from adaproj_edge.warp.mesh import Grid
@@ -37,6 +38,7 @@ class MeshGeometry:
     coords : (T, 3, 2) conformal (alpha, beta) of each triangle role.
     edges : (E, 2) undirected compact edges of the kept triangles.
     lengths : (E,) edge lengths on the surface (metres).
+    boundary : (B, 2) edges on the region's boundary (holes included).
     """
 
     grid: Grid
@@ -49,6 +51,7 @@ class MeshGeometry:
     coords: FloatArray
     edges: IntArray
     lengths: FloatArray
+    boundary: IntArray
 
     @property
     def n(self) -> int:
@@ -100,7 +103,9 @@ class MeshGeometry:
         sums = np.bincount(inverse, weights=tri_len.T.ravel(), minlength=e.shape[0])
         counts = np.bincount(inverse, minlength=e.shape[0])
         lengths = sums / counts
-        return cls(grid, grid_uv, pts, used, index, verts, tris, coords, e, lengths)
+        return cls(
+            grid, grid_uv, pts, used, index, verts, tris, coords, e, lengths, boundary_edges(tris)
+        )
 
 
 def _largest_component(tris: IntArray, n_vertices: int) -> IntArray:

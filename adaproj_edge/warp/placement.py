@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from adaproj_edge.geometry.projector import FloatArray
-from adaproj_edge.geometry.rectangle import inscribed_rectangle
+from adaproj_edge.geometry.rectangle import RASTER, inscribed_rectangle
 from adaproj_edge.geometry.triangles import triangle_normals
 from adaproj_edge.warp.meshgeom import MeshGeometry
 
@@ -81,14 +81,17 @@ def place(
     v: FloatArray,
     content_size: tuple[int, int],
     up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
+    resolution: int = RASTER,
 ) -> Placement:
-    """Upright rotation and inscribed-rectangle similarity for positions ``v`` (n, 2)."""
+    """Upright rotation and inscribed-rectangle similarity for positions ``v`` (n, 2).
+
+    ``resolution`` is the raster the rectangle search starts from.
+    """
     angle = upright_angle(mesh, v, np.asarray(up, dtype=np.float64))
     rot = Placement(angle, 1.0, np.zeros(2))
     vr = rot.apply(v)
     w, h = content_size
-    centre = vr.mean(axis=0)
-    rect = inscribed_rectangle(vr[mesh.tris], w / h, prefer=centre)
+    rect = inscribed_rectangle(vr, mesh.tris, w / h, resolution, mesh.boundary)
     scale = w / rect.width
     # content pixel centres at integers: the rectangle's corner is pixel (-0.5, -0.5)
     offset = np.array([-0.5 - scale * rect.x0, -0.5 - scale * rect.y0])

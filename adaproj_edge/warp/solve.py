@@ -24,23 +24,27 @@ IntArray = NDArray[np.intp]
 
 @dataclass(frozen=True)
 class ContentAwareWeights:
-    """Weights of the content-aware energy; see docs in :func:`ContentAwareSolver`.
+    """Weights of the content-aware energy (see :class:`ContentAwareSolver`).
 
-    conformal_salient : extra E_a weight on triangle roles whose apex is salient
-        (E_a weight is ``1 + conformal_salient * w``).
-    size : weight of r(V_i, s_i) rows of salient vertices (eq. 11).
-    size_floor : weight of r rows of non-salient vertices (they only damp rotation).
-    smooth : weight of ``(w_i + w_j)(s_i - s_j)^2`` (eq. 10), per unit edge length^2.
-    anchor : weight of ``w_i (s_i - 1)^2``, per unit edge length^2: one common scale for
-        every salient region, so relative sizes are kept between separate objects.
+    conformal_salient : extra E_a weight on triangle roles whose apex is salient; the
+        E_a weight is ``1 + conformal_salient * w``.
+    size : weight of the salient edges' length-and-direction rows (E_r with one common
+        scale), per unit edge length.
+    size_floor : weight of the non-salient edges' direction rows (they only damp the
+        rotation of the rest of the mesh).
     damping : weight of ``|V_i - V_i^(n)|^2`` on every vertex, per unit edge length^2.
+
+    Defaults: the salient region is made about a hundred times stiffer than the rest,
+    in shape (``conformal_salient``) and in size (``size``). Measured on the analytic
+    sphere and bowl with off-centre subjects (``tests/test_warp_quality.py``), this cuts
+    the subject's size inconsistency to 0.15-0.6x that of the conformal warp while its
+    angle error stays within 0.5-1.05x; weaker settings (10x) keep more of the
+    conformal warp's size drift, stronger ones (1000x) change nothing further.
     """
 
-    conformal_salient: float = 4.0
-    size: float = 1.0
+    conformal_salient: float = 300.0
+    size: float = 100.0
     size_floor: float = 0.02
-    smooth: float = 1.0
-    anchor: float = 1.0
     damping: float = 1e-4
 
 
@@ -139,19 +143,24 @@ def solve_content_free(
 class ContentAwareSolver:
     """One content-aware alternation step at a time (our reformulation of §4.2).
 
-    Energy, for binary saliency w (paper eq. 5/8) at the current iterate:
+    Energy, for binary saliency w (paper eq. 5/8) at the current iterate V^(n):
 
     ``sum_roles (1 + c w_apex) |E_a residual|^2``
-    ``+ sum_{i->j} (size w_i + floor (1 - w_i)) |V_i - V_j - s_i l_ij v_ij|^2``
-    ``+ L^2 sum_{ij} smooth (w_i + w_j) (s_i - s_j)^2 + L^2 anchor sum_i w_i (s_i - 1)^2``
+    ``+ size sum_edges (w_i + w_j) |V_i - V_j - l_ij v_ij|^2``
+    ``+ floor sum_edges (2 - w_i - w_j) (n_ij . (V_i - V_j))^2``
     ``+ L^2 damping sum_i |V_i - V_i^(n)|^2``
 
-    with v_ij re-linearised from the current iterate each step and L the mean edge
-    length. Unlike the paper, the boundary is free (no content is lost because the
-    placement re-inscribes the content rectangle after every step) and non-salient
-    vertices are not pinned: they follow the conformal term alone, so they absorb the
-    size change the salient region refuses. The anchor gives every salient region the
-    same scale, so separate objects keep their relative sizes.
+    with ``v_ij`` (unit, normal ``n_ij``) the edge's direction in V^(n) (re-linearised
+    every step, as in as-rigid-as-possible deformation) and L the mean edge length.
+
+    This is the paper's E_r with its auxiliary scales tied to one common value on the
+    salient region: ``s_i = 1`` there (every salient object gets the same scale, so
+    separate objects keep their relative sizes) and free elsewhere, where eq. 11 then
+    constrains only the edge's direction. Unlike the paper, the boundary is free (no
+    content is lost: the placement re-inscribes the content rectangle after every
+    step) and non-salient vertices are not pinned to the previous iterate: they follow
+    the conformal term, so they absorb the size change the salient region refuses.
+    With the scales eliminated the system has two unknowns per vertex, not three.
     """
 
     mesh: MeshGeometry
@@ -160,23 +169,19 @@ class ContentAwareSolver:
     def __post_init__(self) -> None:
         mesh = self.mesh
         n = mesh.n
-        self.d_edges, self.d_len = directed(mesh.edges, mesh.lengths)
         self.blocks = [
-            terms.conformal_rows(mesh.tris, mesh.coords, stride=3),
-            terms.scale_edge_rows(self.d_edges, self.d_len, np.zeros((self.d_edges.shape[0], 2))),
-            terms.scale_smooth_rows(mesh.edges),
-            terms.scale_anchor_rows(n),
-            terms.position_rows(n, stride=3),
+            terms.conformal_rows(mesh.tris, mesh.coords, stride=2),
+            terms.edge_rows(mesh.edges),
+            terms.edge_normal_rows(mesh.edges),
+            terms.position_rows(n, stride=2),
         ]
         self.rows = Rows.concat(self.blocks)
-        sizes = [b.rhs.size for b in self.blocks]
-        self.offsets = np.concatenate([[0], np.cumsum(sizes)])
+        self.offsets = np.concatenate([[0], np.cumsum([b.rhs.size for b in self.blocks])])
         a, _ = gauge_vertices(mesh)
         self.pinned = a
-        fixed = np.zeros(3 * n, dtype=bool)
-        fixed[[3 * a, 3 * a + 1]] = True
-        self.fixed = fixed
-        self.system = BandedLeastSquares(self.rows.cols, 3 * n, fixed)
+        fixed = np.zeros(2 * n, dtype=bool)
+        fixed[[2 * a, 2 * a + 1]] = True
+        self.system = BandedLeastSquares(self.rows.cols, 2 * n, fixed)
         self.l2 = float(np.mean(mesh.lengths**2))
         # apex vertex of each conformal row: rows are (triangle, role, component)
         self.apex = np.repeat(mesh.tris, 2, axis=1).reshape(-1)
@@ -184,27 +189,24 @@ class ContentAwareSolver:
     def _block(self, k: int) -> slice:
         return slice(int(self.offsets[k]), int(self.offsets[k + 1]))
 
-    def step(self, v: FloatArray, s: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def step(self, v: FloatArray, w: FloatArray) -> FloatArray:
         """One solve with saliency ``w`` (n,) in {0, 1} from the iterate ``v`` (n, 2)."""
         mesh, cw, rows = self.mesh, self.weights, self.rows
         n = mesh.n
-        dirs = edge_directions(v, self.d_edges)
-        er = self._block(1)
-        rows.vals[er, 2] = -(self.d_len[:, None] * dirs).ravel()
-        tail = self._block(4)
-        rows.rhs[tail] = v.ravel()
-        src = self.d_edges[:, 0]
         ei, ej = mesh.edges[:, 0], mesh.edges[:, 1]
+        dirs = edge_directions(v, mesh.edges)
+        rows.rhs[self._block(1)] = (mesh.lengths[:, None] * dirs).ravel()
+        normal = np.stack([dirs[:, 1], -dirs[:, 0]], axis=1)
+        rows.vals[self._block(2), :4] = np.concatenate([normal, -normal], axis=1)
+        rows.rhs[self._block(3)] = v.ravel()
         weights = np.concatenate(
             [
                 1.0 + cw.conformal_salient * w[self.apex],
-                np.repeat(cw.size * w[src] + cw.size_floor * (1 - w[src]), 2),
-                self.l2 * cw.smooth * (w[ei] + w[ej]),
-                self.l2 * cw.anchor * w,
+                np.repeat(cw.size * (w[ei] + w[ej]), 2),
+                cw.size_floor * (2.0 - w[ei] - w[ej]),
                 np.full(2 * n, self.l2 * cw.damping),
             ]
         )
-        x_fixed = np.zeros(3 * n)
-        x_fixed[3 * self.pinned : 3 * self.pinned + 2] = v[self.pinned]
-        x = self.system.solve(rows.vals, rows.rhs, weights, x_fixed).reshape(n, 3)
-        return x[:, :2].copy(), x[:, 2].copy()
+        x_fixed = np.zeros(2 * n)
+        x_fixed[2 * self.pinned : 2 * self.pinned + 2] = v[self.pinned]
+        return self.system.solve(rows.vals, rows.rhs, weights, x_fixed).reshape(n, 2)

@@ -63,11 +63,6 @@ def scale_edge_rows(
     return Rows(cols.reshape(-1, 3), vals.reshape(-1, 3), np.zeros(2 * e))
 
 
-def update_scale_edge_directions(rows: Rows, lengths: FloatArray, directions: FloatArray) -> None:
-    """Refresh the s-coefficients of :func:`scale_edge_rows` for new directions (in place)."""
-    rows.vals[:, 2] = -(lengths[:, None] * directions).ravel()
-
-
 def scale_smooth_rows(edges: IntArray, stride: int = 3) -> Rows:
     """``s_i - s_j`` for each undirected edge (eq. 10, first sum); (E, 2)."""
     cols = np.stack([stride * edges[:, 0] + 2, stride * edges[:, 1] + 2], axis=1)
@@ -75,14 +70,28 @@ def scale_smooth_rows(edges: IntArray, stride: int = 3) -> Rows:
     return Rows(cols.astype(np.intp), vals, np.zeros(edges.shape[0]))
 
 
-def scale_anchor_rows(n_vertices: int, target: float = 1.0, stride: int = 3) -> Rows:
-    """``s_k - target`` for every vertex: ties the salient scales to one common value."""
-    cols = (stride * np.arange(n_vertices) + 2)[:, None].astype(np.intp)
-    return Rows(cols, np.ones((n_vertices, 1)), np.full(n_vertices, target))
-
-
 def position_rows(n_vertices: int, stride: int) -> Rows:
     """``V_k - target`` rows (x then y per vertex); targets are set by the caller."""
     base = stride * np.arange(n_vertices)
     cols = np.stack([base, base + 1], axis=1).reshape(-1, 1).astype(np.intp)
     return Rows(cols, np.ones((2 * n_vertices, 1)), np.zeros(2 * n_vertices))
+
+
+def edge_rows(edges: IntArray, stride: int = 2) -> Rows:
+    """``V_i - V_j - l_ij v_ij`` for each undirected edge, two rows (x, y); the target
+    ``l_ij v_ij`` goes in the right-hand side, set by the caller (:func:`set_edge_targets`)."""
+    e = edges.shape[0]
+    cols = np.empty((e, 2, 2), dtype=np.intp)
+    for c in range(2):
+        cols[:, c] = np.stack([stride * edges[:, 0] + c, stride * edges[:, 1] + c], axis=1)
+    vals = np.tile(np.array([1.0, -1.0]), (2 * e, 1))
+    return Rows(cols.reshape(-1, 2), vals, np.zeros(2 * e))
+
+
+def edge_normal_rows(edges: IntArray, stride: int = 2) -> Rows:
+    """``n_ij . (V_i - V_j)`` for each undirected edge, n_ij the normal of its target
+    direction: the edge may change length, not direction. Coefficients are set by the
+    caller (:func:`set_edge_normals`)."""
+    i, j = edges[:, 0], edges[:, 1]
+    cols = np.stack([stride * i, stride * i + 1, stride * j, stride * j + 1], axis=1)
+    return Rows(cols.astype(np.intp), np.zeros((edges.shape[0], 4)), np.zeros(edges.shape[0]))

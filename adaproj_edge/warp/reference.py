@@ -1,0 +1,161 @@
+"""The straightforward implementation, kept as the yardstick for the fast solver.
+
+The same energies as :mod:`adaproj_edge.warp.solve`, assembled the way the paper
+describes its implementation: every iteration loops over the terms, collects sparse
+triplets, forms the normal equations and calls ``scipy.sparse.linalg.spsolve``. It is
+readable and obviously right, and slow; tests check that the fast solver gives the same
+answer, and ``tools/bench_warp.py`` measures both in the same run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse
+import scipy.sparse.linalg
+
+from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.warp.engine import Backend
+from adaproj_edge.warp.meshgeom import MeshGeometry
+from adaproj_edge.warp.solve import (
+    ContentAwareWeights,
+    _pin_positions,
+    directed,
+    edge_directions,
+    gauge_vertices,
+)
+
+
+class _Assembler:
+    """Collects weighted residual rows ``sqrt(w) (sum_k c_k x_k - r)``."""
+
+    def __init__(self) -> None:
+        self.rows: list[int] = []
+        self.cols: list[int] = []
+        self.vals: list[float] = []
+        self.rhs: list[float] = []
+
+    def row(self, weight: float, coeffs: list[tuple[int, float]], rhs: float = 0.0) -> None:
+        r = len(self.rhs)
+        sw = float(np.sqrt(weight))
+        for c, v in coeffs:
+            self.rows.append(r)
+            self.cols.append(c)
+            self.vals.append(sw * v)
+        self.rhs.append(sw * rhs)
+
+    def solve(self, n: int, fixed: dict[int, float]) -> FloatArray:
+        a = scipy.sparse.csr_matrix((self.vals, (self.rows, self.cols)), shape=(len(self.rhs), n))
+        b = np.asarray(self.rhs)
+        x = np.zeros(n)
+        for k, v in fixed.items():
+            x[k] = v
+        free = np.array([k for k in range(n) if k not in fixed])
+        b = b - a @ x
+        af = a[:, free]
+        normal = (af.T @ af).tocsc()
+        x[free] = scipy.sparse.linalg.spsolve(normal, af.T @ b)
+        return x
+
+
+def _conformal(asm: _Assembler, mesh: MeshGeometry, stride: int, apex_weight: FloatArray) -> None:
+    for t, tri in enumerate(mesh.tris):
+        for k in range(3):
+            i1, i2, i3 = int(tri[k]), int(tri[(k + 1) % 3]), int(tri[(k + 2) % 3])
+            a, b = float(mesh.coords[t, k, 0]), float(mesh.coords[t, k, 1])
+            x1, x2, x3 = stride * i1, stride * i2, stride * i3
+            y1, y2, y3 = x1 + 1, x2 + 1, x3 + 1
+            w = float(apex_weight[i1])
+            # V1 - V2 - a (V3 - V2) - b R90 (V3 - V2), R90 (x, y) = (y, -x)
+            asm.row(w, [(x1, 1.0), (x2, a - 1.0), (x3, -a), (y2, b), (y3, -b)])
+            asm.row(w, [(y1, 1.0), (y2, a - 1.0), (y3, -a), (x2, -b), (x3, b)])
+
+
+def _relative_size(
+    asm: _Assembler,
+    mesh: MeshGeometry,
+    dirs: FloatArray,
+    edge_weight: FloatArray,
+    smooth_weight: FloatArray,
+) -> None:
+    d_edges, d_len = directed(mesh.edges, mesh.lengths)
+    for e, (i, j) in enumerate(d_edges):
+        i, j = int(i), int(j)
+        w = float(edge_weight[e])
+        for c in range(2):
+            asm.row(w, [(3 * i + c, 1.0), (3 * j + c, -1.0), (3 * i + 2, -d_len[e] * dirs[e, c])])
+    for e, (i, j) in enumerate(mesh.edges):
+        asm.row(float(smooth_weight[e]), [(3 * int(i) + 2, 1.0), (3 * int(j) + 2, -1.0)])
+
+
+def solve_conformal_reference(mesh: MeshGeometry) -> FloatArray:
+    """E_a only, uniform weights, two vertices pinned (see ``solve_conformal``)."""
+    asm = _Assembler()
+    _conformal(asm, mesh, 2, np.ones(mesh.n))
+    a, b = gauge_vertices(mesh)
+    pa, pb = _pin_positions(mesh, a, b)
+    fixed = {2 * a: pa[0], 2 * a + 1: pa[1], 2 * b: pb[0], 2 * b + 1: pb[1]}
+    return asm.solve(2 * mesh.n, fixed).reshape(-1, 2)
+
+
+def solve_content_free_reference(
+    mesh: MeshGeometry, v_conformal: FloatArray, lam: float
+) -> tuple[FloatArray, FloatArray]:
+    """E' = E_a + lambda E_r, all weights 1 (see ``solve_content_free``)."""
+    asm = _Assembler()
+    _conformal(asm, mesh, 3, np.ones(mesh.n))
+    d_edges, _ = directed(mesh.edges, mesh.lengths)
+    dirs = edge_directions(v_conformal, d_edges)
+    l2 = float(np.mean(mesh.lengths**2))
+    _relative_size(
+        asm, mesh, dirs, np.full(d_edges.shape[0], lam), np.full(mesh.edges.shape[0], lam * 2 * l2)
+    )
+    a, b = gauge_vertices(mesh)
+    fixed = {
+        3 * a: v_conformal[a, 0],
+        3 * a + 1: v_conformal[a, 1],
+        3 * b: v_conformal[b, 0],
+        3 * b + 1: v_conformal[b, 1],
+    }
+    x = asm.solve(3 * mesh.n, fixed).reshape(-1, 3)
+    return x[:, :2].copy(), x[:, 2].copy()
+
+
+@dataclass
+class ReferenceContentAwareSolver:
+    """Same interface and energy as :class:`~adaproj_edge.warp.solve.ContentAwareSolver`,
+    assembled term by term and solved with ``spsolve`` at every step."""
+
+    mesh: MeshGeometry
+    weights: ContentAwareWeights = field(default_factory=ContentAwareWeights)
+
+    def step(self, v: FloatArray, w: FloatArray) -> FloatArray:
+        mesh, cw = self.mesh, self.weights
+        n = mesh.n
+        asm = _Assembler()
+        _conformal(asm, mesh, 2, 1.0 + cw.conformal_salient * w)
+        dirs = edge_directions(v, mesh.edges)
+        for e, (i, j) in enumerate(mesh.edges):
+            i, j = int(i), int(j)
+            both = float(w[i] + w[j])
+            target = mesh.lengths[e] * dirs[e]
+            for c in range(2):
+                asm.row(cw.size * both, [(2 * i + c, 1.0), (2 * j + c, -1.0)], float(target[c]))
+            nx, ny = float(dirs[e, 1]), float(-dirs[e, 0])
+            asm.row(
+                cw.size_floor * (2.0 - both),
+                [(2 * i, nx), (2 * i + 1, ny), (2 * j, -nx), (2 * j + 1, -ny)],
+            )
+        l2 = float(np.mean(mesh.lengths**2))
+        for i in range(n):
+            for c in range(2):
+                asm.row(l2 * cw.damping, [(2 * i + c, 1.0)], float(v[i, c]))
+        a, _ = gauge_vertices(mesh)
+        fixed = {2 * a: float(v[a, 0]), 2 * a + 1: float(v[a, 1])}
+        return asm.solve(2 * n, fixed).reshape(-1, 2)
+
+
+REFERENCE = Backend(
+    solve_conformal_reference, solve_content_free_reference, ReferenceContentAwareSolver
+)
