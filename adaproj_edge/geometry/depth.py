@@ -214,50 +214,53 @@ def smooth_lattice(
     """
     if sigma_nodes < 0.5:
         return s
-    rows, cols = s.shape
     r = int(np.ceil(2 * sigma_nodes))
     valid = np.isfinite(s) & (s > 0)
     q = np.where(valid, 1.0 / np.where(valid, s, 1.0), 0.0)
-    qp = np.pad(q, r)
-    mp = np.pad(valid.astype(np.float64), r)
-    offsets = [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1)]
+    m = valid.astype(np.float64)
+    dy, dx = np.mgrid[-r : r + 1, -r : r + 1].astype(np.float64)
+    g = np.exp(-(dx * dx + dy * dy) / (2 * sigma_nodes**2))
+    x, y = dx / r, dy / r
+    halves = [np.ones_like(g), dx <= 0, dx >= 0, dy <= 0, dy >= 0]  # whole, left, right, up, down
+    powers = [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)]  # the quadratic basis x^a y^b
 
-    def windows(dy: int, dx: int) -> list[int]:
-        # 0 whole, 1 left, 2 right, 3 up, 4 down
-        return [0] + [i for i, ok in ((1, dx <= 0), (2, dx >= 0), (3, dy <= 0), (4, dy >= 0)) if ok]
+    def corr(img: FloatArray, kernel: FloatArray) -> FloatArray:
+        # sum over the window of kernel(offset) * img(node + offset), zeros outside
+        out = cv2.filter2D(img, cv2.CV_64F, kernel, borderType=cv2.BORDER_CONSTANT)
+        return np.asarray(out, dtype=np.float64)
 
-    def terms(dy: int, dx: int) -> tuple[FloatArray, FloatArray, FloatArray]:
-        g = np.exp(-(dy * dy + dx * dx) / (2 * sigma_nodes**2))
-        qs = qp[r + dy : r + dy + rows, r + dx : r + dx + cols]
-        w = g * mp[r + dy : r + dy + rows, r + dx : r + dx + cols]
-        x, y = dx / r, dy / r
-        return qs, w, np.array([1.0, x, y, x * x, x * y, y * y])
-
-    A = np.zeros((5, rows, cols, 6, 6))
-    b = np.zeros((5, rows, cols, 6))
-    wsum = np.zeros((5, rows, cols))
-    for dy, dx in offsets:
-        qs, w, phi = terms(dy, dx)
-        for k in windows(dy, dx):
-            A[k] += w[..., None, None] * np.outer(phi, phi)
-            b[k] += (w * qs)[..., None] * phi
-            wsum[k] += w
-    ok = valid[None] & (wsum >= min_weight)
-    A[~ok] = np.eye(6)
-    b[~ok] = 0.0
-    coef = np.linalg.solve(A + 1e-9 * np.eye(6), b[..., None])[..., 0]  # (5, rows, cols, 6)
-    rss = np.zeros((5, rows, cols))
-    for dy, dx in offsets:
-        qs, w, phi = terms(dy, dx)
-        for k in windows(dy, dx):
-            rss[k] += w * (qs - coef[k] @ phi) ** 2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rss = np.where(ok, rss / wsum, np.inf)
-    side = 1 + np.argmin(rss[1:], axis=0)
-    best_side = np.take_along_axis(rss[1:], (side - 1)[None], axis=0)[0]
-    choice = np.where(rss[0] > switch * best_side, side, 0)
-    choice = np.where(ok[0], choice, np.where(ok.any(axis=0), np.argmax(ok, axis=0), -1))
-    qf = np.take_along_axis(coef[..., 0], np.maximum(choice, 0)[None], axis=0)[0]
+    fits, rss, enough = [], [], []
+    for half in halves:
+        w = g * half
+        mom = {}
+        for a1, b1 in powers:
+            for a2, b2 in powers:
+                key = (a1 + a2, b1 + b2)
+                if key not in mom:
+                    mom[key] = corr(m, w * x ** key[0] * y ** key[1])
+        A = np.stack([np.stack([mom[(a1 + a2, b1 + b2)] for a2, b2 in powers], -1)
+                      for a1, b1 in powers], -2)  # fmt: skip
+        bq = np.stack([corr(m * q, w * x**a1 * y**b1) for a1, b1 in powers], -1)
+        sqq = corr(m * q * q, w)
+        ok = valid & (mom[(0, 0)] >= min_weight)
+        A[~ok] = np.eye(6)
+        bq[~ok] = 0.0
+        coef = np.linalg.solve(A + 1e-9 * np.eye(6), bq[..., None])[..., 0]
+        # weighted residual sum of squares from the moments: S - 2 c.b + c^T A c
+        res = sqq - 2 * np.sum(coef * bq, -1) + np.einsum("...i,...ij,...j->...", coef, A, coef)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rss.append(np.where(ok, np.maximum(res, 0.0) / mom[(0, 0)], np.inf))
+        fits.append(coef[..., 0])
+        enough.append(ok)
+    R = np.stack(rss)
+    side = 1 + np.argmin(R[1:], axis=0)
+    best_side = np.take_along_axis(R[1:], (side - 1)[None], axis=0)[0]
+    choice = np.where(R[0] > switch * best_side, side, 0)
+    ok_any = np.stack(enough)
+    choice = np.where(
+        ok_any[0], choice, np.where(ok_any.any(axis=0), np.argmax(ok_any, axis=0), -1)
+    )
+    qf = np.take_along_axis(np.stack(fits), np.maximum(choice, 0)[None], axis=0)[0]
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(valid & (choice >= 0) & (qf > 0), 1.0 / qf, np.where(valid, s, np.nan))
 
