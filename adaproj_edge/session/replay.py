@@ -20,6 +20,8 @@ from adaproj_edge.hal.imu import ImuSample, ReplayImu
 from adaproj_edge.session import schemas as s
 from adaproj_edge.session.codec import Record
 from adaproj_edge.session.reader import iter_records, read_calibration
+from adaproj_edge.session.records import SerialTraffic
+from adaproj_edge.session.serial_tap import ReplayPort
 
 
 class Replay:
@@ -50,3 +52,8 @@ class Replay:
     def button(self) -> ReplayButton:
         evs = (r for r in iter_records(self.path, {s.BUTTON}) if isinstance(r, ButtonEvent))
         return ReplayButton(evs, self.clock)
+
+    def serial_port(self) -> ReplayPort:
+        topics = {s.SERIAL_RX, s.SERIAL_TX}
+        traffic = (r for r in iter_records(self.path, topics) if isinstance(r, SerialTraffic))
+        return ReplayPort(traffic, self.clock)
