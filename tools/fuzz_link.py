@@ -10,12 +10,15 @@ Two targets from ``tests/link/fuzz_cases.py`` (the test suite runs a slice of ea
 
 Every input must leave the server standing: no exception, a well-formed reply (same
 group, sequence, command; op + 1) or nothing for what is not a request, never an
-"internal error", decoder buffers within their bounds. The run prints the counts, the
-slowest single input, and the process's peak RSS at each quarter (bounded memory).
+"internal error", decoder buffers within their bounds. One server, store and decoder
+live through the whole run; hypothesis runs in batches of ``--batch`` inputs (each
+with its own seed), so its own records of what it generated are freed between
+batches. The process's resident memory after each batch shows whether the server
+keeps anything: it must level off.
 
 Usage::
 
-    .venv/bin/python tools/fuzz_link.py [--examples 100000] [--seed 0]
+    .venv/bin/python tools/fuzz_link.py [--examples 100000] [--batch 5000] [--seed 0]
 
 ``--examples`` is split evenly between the two targets.
 """
@@ -23,17 +26,17 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import gc
 import logging
-import resource
 import sys
 import tempfile
 import time
-import tracemalloc
 from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 
 from hypothesis import HealthCheck, given, seed, settings
+from hypothesis import strategies as st
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -44,81 +47,81 @@ from adaproj_edge.link.store import ContentStore, Limits
 from tests.link.fuzz_cases import dispatch_target, messages, streams, wire_target
 
 
-def peak_rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+def rss_mb() -> float:
+    """Resident memory now (not the peak), from /proc."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
 
 
-def ours_kb() -> float:
-    """KiB held now by allocations made in adaproj_edge (the server, store, decoder)."""
-    snap = tracemalloc.take_snapshot().filter_traces([tracemalloc.Filter(True, "*adaproj_edge*")])
-    return sum(s.size for s in snap.statistics("filename")) / 1024
+class Target:
+    """One fuzz target with its long-lived server, and what it has seen."""
 
+    def __init__(self, name: str, root: Path) -> None:
+        self.name = name
+        store = ContentStore(root / name, Limits(quota=2**20, max_file=2**19))
+        self.server = Server(store, StandaloneDevice(64, 40), buf_size=2048)
+        self.decoder = FrameDecoder(self.server.max_message)
+        self.seen: Counter[str] = Counter()
+        self.count = 0
+        self.slowest = 0.0
 
-def run_target(name: str, n: int, rng_seed: int, root: Path) -> None:
-    store = ContentStore(root / name, Limits(quota=2**20, max_file=2**19))
-    server = Server(store, StandaloneDevice(64, 40), buf_size=2048)
-    decoder = FrameDecoder(server.max_message)
-    seen: Counter[str] = Counter()
-    slowest = [0.0]
-    count = [0]
-    marks = {n * k // 4 for k in (1, 2, 3, 4)}
-
-    def timed(f: Callable[[], None]) -> None:
+    def timed(self, f: Callable[[], None]) -> None:
         t0 = time.perf_counter()
         f()
-        slowest[0] = max(slowest[0], time.perf_counter() - t0)
-        count[0] += 1
-        if count[0] in marks:
-            print(
-                f"  {name}: {count[0]:>7d} inputs, held by adaproj_edge {ours_kb():7.1f} KiB, "
-                f"process peak RSS {peak_rss_mb():6.1f} MB (hypothesis's own records grow)",
-                flush=True,
-            )
+        self.slowest = max(self.slowest, time.perf_counter() - t0)
+        self.count += 1
 
-    config = settings(
-        max_examples=n,
-        deadline=None,
-        database=None,
-        suppress_health_check=list(HealthCheck),
-    )
-    if name == "wire":
+    def batch(self, n: int, batch_seed: int) -> None:
+        config = settings(
+            max_examples=n, deadline=None, database=None, suppress_health_check=list(HealthCheck)
+        )
+        strategy: st.SearchStrategy[object] = streams() if self.name == "wire" else messages()
 
-        @seed(rng_seed)
+        @seed(batch_seed)
         @config
-        @given(streams())
-        def fuzz_wire(chunks: list[bytes]) -> None:
-            timed(lambda: wire_target(server, decoder, chunks, seen))
+        @given(strategy)
+        def run(x: object) -> None:
+            if self.name == "wire":
+                self.timed(lambda: wire_target(self.server, self.decoder, x, self.seen))  # type: ignore[arg-type]
+            else:
+                self.timed(lambda: dispatch_target(self.server, x, self.seen))  # type: ignore[arg-type]
 
-        fuzz_wire()
-    else:
+        run()
 
-        @seed(rng_seed)
-        @config
-        @given(messages())
-        def fuzz_dispatch(message: bytes) -> None:
-            timed(lambda: dispatch_target(server, message, seen))
-
-        fuzz_dispatch()
-    dropped = sum(decoder.stats.dropped.values())
-    print(
-        f"{name}: {count[0]} inputs; replies: {seen['success']} success, {seen['error']} "
-        f"SMP errors, {seen['ignored']} ignored (not requests); frames decoded "
-        f"{decoder.stats.frames}, dropped {dropped} {dict(decoder.stats.dropped)}; "
-        f"server counters {server.counters}; slowest input {slowest[0] * 1000:.1f} ms"
-    )
+    def summary(self) -> str:
+        s, d = self.seen, self.decoder.stats
+        return (
+            f"{self.name}: {self.count} inputs; replies: {s['success']} success, {s['error']} "
+            f"SMP errors, {s['ignored']} ignored (not requests); frames decoded {d.frames}, "
+            f"dropped {sum(d.dropped.values())} {dict(d.dropped)}; server counters "
+            f"{self.server.counters}; slowest input {self.slowest * 1000:.1f} ms"
+        )
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--examples", type=int, default=100_000, help="inputs in all")
+    ap.add_argument("--batch", type=int, default=5000, help="inputs per hypothesis run")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     logging.disable(logging.WARNING)  # every refusal is logged; millions of lines otherwise
-    tracemalloc.start(1)
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory() as tmp:
         for name in ("wire", "dispatch"):
-            run_target(name, args.examples // 2, args.seed, Path(tmp))
+            target = Target(name, Path(tmp))
+            want = args.examples // 2
+            i = 0
+            while target.count < want:
+                before = target.count
+                target.batch(min(args.batch, want - target.count), args.seed + i)
+                i += 1
+                if target.count == before:
+                    raise SystemExit(f"{name}: hypothesis generated nothing new")
+                gc.collect()
+                print(f"  {name}: {target.count:>7d} inputs, RSS {rss_mb():6.1f} MB", flush=True)
+            print(target.summary(), flush=True)
     print(f"total {args.examples} inputs in {time.monotonic() - t0:.0f} s, no failure")
     return 0
 
