@@ -32,3 +32,6 @@ REGISTRY.append(record.register)
 from adaproj_edge.commands import simulate_session  # noqa: E402
 
 REGISTRY.append(simulate_session.register)
+from adaproj_edge.commands import demo, simulate, surface, warp  # noqa: E402
+
+REGISTRY.extend([demo.register, warp.register, simulate.register, surface.register])

@@ -21,10 +21,9 @@ from dataclasses import dataclass, field
 from typing import Any, Literal, Protocol
 
 import numpy as np
-import scipy.ndimage
 from numpy.typing import NDArray
 
-from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
+from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD, ContentMap
 from adaproj_edge.errors import InputError, WarpError
 from adaproj_edge.geometry.projector import FloatArray
 from adaproj_edge.geometry.surface import Surface
@@ -91,26 +90,6 @@ class WarpSettings:
             raise InputError("max_iterations, tolerance and lambda must be positive")
 
 
-def sample_content_map(
-    content_map: NDArray[np.floating], xy: FloatArray, size: tuple[int, int]
-) -> FloatArray:
-    """Bilinear content-map values at content pixel coordinates ``xy`` (n, 2).
-
-    The map (h', w') may be coarser than the content (w, h); it covers the same area.
-    Outside the content the value is 0.
-    """
-    w, h = size
-    mh, mw = content_map.shape
-    mx = (xy[:, 0] + 0.5) * (mw / w) - 0.5
-    my = (xy[:, 1] + 0.5) * (mh / h) - 0.5
-    vals = scipy.ndimage.map_coordinates(
-        np.asarray(content_map, dtype=np.float64), [my, mx], order=1, mode="nearest"
-    )
-    inside = (xy[:, 0] >= -0.5) & (xy[:, 0] <= w - 0.5) & (xy[:, 1] >= -0.5) & (xy[:, 1] <= h - 0.5)
-    out: FloatArray = np.where(inside, vals, 0.0)
-    return out
-
-
 def standard_warp(surface: Surface, content_size: tuple[int, int], grid: Grid) -> Warp:
     """The content letterboxed into the full frame: what a plain projector shows."""
     proj = surface.projector
@@ -127,7 +106,7 @@ def standard_warp(surface: Surface, content_size: tuple[int, int], grid: Grid) -
 def compute_warp(
     surface: Surface,
     content_size: tuple[int, int],
-    content_map: NDArray[np.floating] | None = None,
+    content_map: ContentMap | NDArray[np.floating] | None = None,
     settings: WarpSettings | None = None,
     backend: Backend = FAST,
 ) -> Warp:
@@ -138,8 +117,9 @@ def compute_warp(
     surface : Surface
         Projector-space point map (any lattice resolution).
     content_size : (w, h)
-    content_map : (h', w') float array in [0, 1], optional
-        The content map C (saliency max user mask); None means uniform.
+    content_map : ContentMap or (h', w') float array in [0, 1], optional
+        The content map C (saliency max user mask) over the whole content, at any
+        resolution; None means uniform. Vertices are salient where C >= threshold.
     settings : WarpSettings, optional
 
     Returns
@@ -166,8 +146,12 @@ def compute_warp(
         timings["init"] = time.perf_counter() - t0
         t2 = time.perf_counter()
         if content_map is not None:
+            values = content_map.values if isinstance(content_map, ContentMap) else content_map
+            if np.ndim(values) != 2:
+                raise InputError(f"content map must be a 2D array, got shape {np.shape(values)}")
+            cmap = ContentMap(np.asarray(values, np.float32), content_size, settings.threshold)
             v, placement, iterations, salient_fraction = refine(
-                mesh, v, placement, content_map, content_size, settings, backend, timings
+                mesh, v, placement, cmap, settings, backend, timings
             )
         timings["refine"] = time.perf_counter() - t2
     else:
@@ -182,16 +166,13 @@ def refine(
     mesh: MeshGeometry,
     v: FloatArray,
     placement: Placement,
-    content_map: NDArray[np.floating],
-    content_size: tuple[int, int],
+    content_map: ContentMap,
     settings: WarpSettings,
     backend: Backend = FAST,
     timings: dict[str, Any] | None = None,
 ) -> tuple[FloatArray, Placement, int, float]:
     """The content-aware alternation (Algorithm 1, our energy); returns the final
     positions, their placement, the number of steps and the salient vertex fraction."""
-    if content_map.ndim != 2:
-        raise InputError(f"content map must be a 2D array, got shape {content_map.shape}")
     solver: StepSolver | None = None
     iterations = 0
     fraction = 0.0
@@ -199,9 +180,7 @@ def refine(
     for _ in range(settings.max_iterations):
         t0 = time.perf_counter()
         xy = placement.apply(v)
-        w = (sample_content_map(content_map, xy, content_size) >= settings.threshold).astype(
-            np.float64
-        )
+        w = content_map.weights(xy).astype(np.float64)
         fraction = float(w.mean())
         if w.min() == w.max():  # nothing or everything salient: E' already is the answer
             break
@@ -210,7 +189,7 @@ def refine(
         v_new = solver.step(v, w)
         if not _orientation_ok(mesh, v_new):
             break  # keep the last fold-free iterate
-        new_placement = place(mesh, v_new, content_size, settings.up)
+        new_placement = place(mesh, v_new, content_map.content_size, settings.up)
         motion = float(np.mean(np.linalg.norm(new_placement.apply(v_new) - xy, axis=1)))
         v, placement = v_new, new_placement
         iterations += 1

@@ -1,0 +1,39 @@
+"""One projection: surface + content + settings -> warp, per-pixel map and frame."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.render.frame import RemapMaps, render_frame
+from adaproj_edge.render.maps import map_from_warp
+from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.mesh import Warp
+
+
+@dataclass(frozen=True)
+class Projection:
+    warp: Warp
+    map_xy: NDArray[np.float32]
+    maps: RemapMaps
+    frame: NDArray[np.uint8]
+
+
+def project(
+    surface: Surface,
+    content: NDArray[np.uint8],
+    content_map: ContentMap | NDArray[np.floating] | None,
+    settings: WarpSettings,
+) -> Projection:
+    """Compute the warp for ``content`` (h, w[, 3]) on ``surface`` and render its frame."""
+    h, w = content.shape[:2]
+    warp = compute_warp(surface, (w, h), content_map, settings)
+    # the standard projector shows the frame as it is; the others map through the surface
+    map_xy = map_from_warp(warp, None if settings.mode == "standard" else surface)
+    warp.map_xy = map_xy
+    maps = RemapMaps.from_map(map_xy)
+    return Projection(warp, map_xy, maps, render_frame(content, maps))

@@ -1,0 +1,46 @@
+"""Pictures side by side with captions (simulation pictures, contact sheets)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+Image = NDArray[np.uint8]
+
+
+def _bgr(img: Image) -> Image:
+    return np.asarray(cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if img.ndim == 2 else img, np.uint8)
+
+
+def captioned(img: Image, caption: str, height: int) -> Image:
+    """``img`` scaled to ``height`` with a caption bar on top."""
+    img = _bgr(img)
+    scale = height / img.shape[0]
+    body = cv2.resize(
+        img, (max(1, round(img.shape[1] * scale)), height), interpolation=cv2.INTER_AREA
+    )
+    bar = np.full((28, body.shape[1], 3), 20, dtype=np.uint8)
+    cv2.putText(
+        bar, caption, (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (235, 235, 235), 1, cv2.LINE_AA
+    )
+    return np.vstack([bar, body])
+
+
+def row(images: Sequence[Image], captions: Sequence[str], height: int = 300) -> Image:
+    """Captioned images side by side, with a thin gap."""
+    parts: list[Image] = []
+    for img, cap in zip(images, captions, strict=True):
+        if parts:
+            parts.append(np.full((height + 28, 6, 3), 0, dtype=np.uint8))
+        parts.append(captioned(img, cap, height))
+    return np.hstack(parts)
+
+
+def stack(rows: Sequence[Image]) -> Image:
+    """Rows one under the other, padded to the widest."""
+    width = max(r.shape[1] for r in rows)
+    padded = [np.pad(r, ((0, 6), (0, width - r.shape[1]), (0, 0))) for r in rows]
+    return np.vstack(padded)
