@@ -143,13 +143,14 @@ class Surface:
         path = Path(path)
         try:
             with np.load(path, allow_pickle=False) as f:
+                for key in ("points", "K"):
+                    if key not in f:
+                        raise SurfaceError(f"surface file {path} has no {key!r} array")
                 points = np.asarray(f["points"])
                 K = np.asarray(f["K"], dtype=np.float64)
                 meta = json.loads(str(f["meta"])) if "meta" in f else {}
         except FileNotFoundError:
             raise SurfaceError(f"surface file not found: {path}") from None
-        except KeyError as e:
-            raise SurfaceError(f"surface file {path} has no {e.args[0]!r} array") from None
         except (OSError, ValueError) as e:
             raise SurfaceError(f"cannot read surface file {path}: {e}") from None
         if not isinstance(meta, dict):

@@ -97,6 +97,9 @@ class Warp:
         """Read a warp file written by :meth:`save`."""
         try:
             with np.load(Path(path), allow_pickle=False) as f:
+                for key in ("grid_uv", "image_xy", "K", "meta"):
+                    if key not in f:
+                        raise InputError(f"warp file {path} has no {key!r} array")
                 meta = json.loads(str(f["meta"]))
                 grid_uv = np.asarray(f["grid_uv"], dtype=np.float64)
                 image_xy = np.asarray(f["image_xy"], dtype=np.float64)
@@ -109,6 +112,9 @@ class Warp:
             raise InputError(f"cannot read warp file {path}: {e}") from None
         if grid_uv.shape != image_xy.shape or grid_uv.ndim != 3 or grid_uv.shape[2] != 2:
             raise InputError(f"warp file {path}: grid_uv and image_xy must both be (R, C, 2)")
-        projector = Projector(K, int(meta["width"]), int(meta["height"]))
-        size = (int(meta["content_width"]), int(meta["content_height"]))
+        try:
+            projector = Projector(K, int(meta["width"]), int(meta["height"]))
+            size = (int(meta["content_width"]), int(meta["content_height"]))
+        except (KeyError, TypeError, ValueError):
+            raise InputError(f"warp file {path}: meta lacks the frame or content size") from None
         return cls(grid_uv, image_xy, size, projector, meta, map_xy, depth)

@@ -1,0 +1,53 @@
+"""Shared, cached warps of the analytic surfaces (each is computed once per session)."""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.geometry.analytic import get_surface, simulate_surface
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.render.maps import map_from_warp
+from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.mesh import Warp
+from tests.distortion import Distortion, measure
+
+CONTENT = (640, 400)
+
+
+def subject_masks() -> dict[str, NDArray[np.float32]]:
+    """Off-centre subjects: one standing left, two people apart."""
+    w, h = CONTENT
+    yy, xx = np.mgrid[0:h, 0:w]
+
+    def ellipse(cx: float, cy: float, rx: float, ry: float) -> NDArray[np.bool_]:
+        return np.asarray(((xx - cx * w) / (rx * w)) ** 2 + ((yy - cy * h) / (ry * h)) ** 2 <= 1)
+
+    return {
+        "one-left": ellipse(0.3, 0.5, 0.14, 0.3).astype(np.float32),
+        "two-apart": (ellipse(0.7, 0.55, 0.1, 0.25) | ellipse(0.25, 0.5, 0.1, 0.25)).astype(
+            np.float32
+        ),
+    }
+
+
+@cache
+def surface(name: str) -> Surface:
+    return simulate_surface(name)
+
+
+@cache
+def warped(name: str, mode: str, mask: str | None = None) -> tuple[Warp, NDArray[np.float32]]:
+    s = surface(name)
+    cmap = None if mask is None else subject_masks()[mask]
+    warp = compute_warp(s, CONTENT, cmap, WarpSettings(mode=mode))  # type: ignore[arg-type]
+    return warp, map_from_warp(warp, None if mode == "standard" else s)
+
+
+@cache
+def distortion(name: str, mode: str, mask: str | None = None) -> Distortion:
+    _, m = warped(name, mode, mask)
+    s = surface(name)
+    return measure(m, get_surface(name), s.projector.K)

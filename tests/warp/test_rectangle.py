@@ -1,0 +1,57 @@
+"""The maximal inscribed rectangle."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from adaproj_edge.errors import WarpError
+from adaproj_edge.geometry.rectangle import boundary_edges, inscribed_rectangle, linf_clearance
+from adaproj_edge.geometry.triangles import grid_triangles
+
+
+def grid_mesh(cols: int, rows: int, w: float, h: float) -> tuple[np.ndarray, np.ndarray]:
+    xs, ys = np.meshgrid(np.linspace(0, w, cols + 1), np.linspace(0, h, rows + 1))
+    return np.stack([xs.ravel(), ys.ravel()], axis=1), grid_triangles(rows, cols)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31))
+def test_linf_clearance_is_the_sampled_minimum(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    c, p0, p1 = rng.normal(size=(4, 2)), rng.normal(size=(6, 2)), rng.normal(size=(6, 2))
+    t = np.linspace(0, 1, 4001)[None, None, :, None]
+    pts = p0[None, :, None, :] + t * (p1 - p0)[None, :, None, :]
+    brute = np.abs(pts - c[:, None, None, :]).max(-1).min(-1).min(-1)
+    np.testing.assert_allclose(linf_clearance(c, p0, p1), brute, atol=2e-3)
+
+
+def test_rectangle_fills_a_rectangle_of_its_aspect() -> None:
+    v, tris = grid_mesh(8, 5, 16.0, 10.0)
+    r = inscribed_rectangle(v, tris, 1.6)
+    assert r.width == pytest.approx(16.0, rel=1e-3) and r.height == pytest.approx(10.0, rel=1e-3)
+
+
+def test_rectangle_avoids_holes_and_stays_inside() -> None:
+    v, tris = grid_mesh(10, 10, 10.0, 10.0)
+    # punch a hole: drop the triangles of cell (row 5, col 2)
+    keep = np.ones(len(tris), dtype=bool)
+    keep[2 * (5 * 10 + 2) : 2 * (5 * 10 + 2) + 2] = False
+    r = inscribed_rectangle(v, tris[keep], 1.0)
+    # the best square lies right of the hole: x in [3, 10], side 7
+    assert r.width == pytest.approx(7.0, rel=2e-3)
+    assert r.x0 >= 3.0 - 1e-6
+    assert r.x0 + r.width <= 10.0 + 1e-6 and r.y0 >= -1e-6 and r.y0 + r.height <= 10 + 1e-6
+
+
+def test_boundary_edges_of_a_grid_are_its_outline() -> None:
+    _, tris = grid_mesh(4, 3, 4.0, 3.0)
+    assert len(boundary_edges(tris)) == 2 * (4 + 3)
+
+
+def test_degenerate_region_is_an_error() -> None:
+    v = np.zeros((3, 2))
+    with pytest.raises(WarpError):
+        inscribed_rectangle(v, np.array([[0, 1, 2]]), 1.0)
