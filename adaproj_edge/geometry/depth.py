@@ -414,7 +414,7 @@ def dense_shape(projector: Projector, step: int = 4) -> tuple[int, int]:
 
 
 def is_still(
-    gyro: FloatArray, accel: FloatArray, max_rate: float = 0.03, max_accel_std: float = 0.15
+    gyro: FloatArray, accel: FloatArray, max_rate: float = 0.03, max_accel_std: float = 0.3
 ) -> bool:
     """Whether IMU samples (N, 3) gyro rad/s and (N, 3) accel m/s^2 show a still device."""
     g = np.asarray(gyro, dtype=np.float64).reshape(-1, 3)
@@ -434,7 +434,7 @@ class SurfaceFilter:
     depth starts over. At most ``max_frames`` frames are kept in the mean.
     """
 
-    def __init__(self, max_frames: int = 12, jump_rel: float = 0.03) -> None:
+    def __init__(self, max_frames: int = 30, jump_rel: float = 0.03) -> None:
         self.max_frames = max_frames
         self.jump_rel = jump_rel
         self._s: FloatArray | None = None
