@@ -98,6 +98,7 @@ def inscribed_rectangle(
     aspect: float,
     resolution: int = RASTER,
     boundary: IntArray | None = None,
+    start: FloatArray | None = None,
 ) -> Rect:
     """Largest rectangle of ``aspect`` (width / height) inside the union of triangles.
 
@@ -114,15 +115,27 @@ def inscribed_rectangle(
         which local optimum the search climbs).
     boundary : (E, 2) int array, optional
         :func:`boundary_edges` of ``tris``, when the caller has it already.
+    start : (2,) float array, optional
+        A centre to climb from instead of the raster's (warm start: the previous
+        rectangle's centre while the mesh changes a little).
     """
     if tris.size == 0:
         raise WarpError("no surface triangles to place the content on")
     q = v * np.array([1.0, aspect])  # the wanted rectangle becomes a square
     edges = boundary_edges(tris) if boundary is None else boundary
     p0, p1 = q[edges[:, 0]], q[edges[:, 1]]
-    c, step = _raster_start(q, tris, resolution)
-    r = float(linf_clearance(c, p0, p1))
-    tol = 1e-4 * float(np.max(np.ptp(q, axis=0)))
+    extent = float(np.max(np.ptp(q, axis=0)))
+    tol = 1e-4 * extent
+    r = -1.0
+    if start is not None:
+        c = np.asarray(start, dtype=np.float64) * np.array([1.0, aspect])
+        step = 0.01 * extent
+        r = float(linf_clearance(c, p0, p1))
+        if not _inside(c, q, tris):
+            r = -1.0
+    if r <= 0:
+        c, step = _raster_start(q, tris, resolution)
+        r = float(linf_clearance(c, p0, p1))
     while step > tol:
         trial = c + step * _DIRECTIONS
         rt = linf_clearance(trial, p0, p1)
@@ -132,3 +145,17 @@ def inscribed_rectangle(
         else:
             step *= 0.5
     return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
+
+
+def _inside(c: FloatArray, v: FloatArray, tris: IntArray) -> bool:
+    """Whether point ``c`` lies in one of the triangles."""
+    a, b, d = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
+
+    def side(p: FloatArray, q: FloatArray) -> FloatArray:
+        out: FloatArray = (q[:, 0] - p[:, 0]) * (c[1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (
+            c[0] - p[:, 0]
+        )
+        return out
+
+    s1, s2, s3 = side(a, b), side(b, d), side(d, a)
+    return bool(np.any(((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))))

@@ -28,7 +28,7 @@ from adaproj_edge.errors import InputError, WarpError
 from adaproj_edge.geometry.projector import FloatArray
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.warp.mesh import Grid, Warp
-from adaproj_edge.warp.meshgeom import MeshGeometry
+from adaproj_edge.warp.meshgeom import MeshGeometry, WarpCache
 from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
 from adaproj_edge.warp.solve import (
     ContentAwareSolver,
@@ -109,6 +109,7 @@ def compute_warp(
     content_map: ContentMap | NDArray[np.floating] | None = None,
     settings: WarpSettings | None = None,
     backend: Backend = FAST,
+    cache: WarpCache | None = None,
 ) -> Warp:
     """The warp for ``surface`` and content of ``content_size`` (w, h) pixels.
 
@@ -121,6 +122,10 @@ def compute_warp(
         The content map C (saliency max user mask) over the whole content, at any
         resolution; None means uniform. Vertices are salient where C >= threshold.
     settings : WarpSettings, optional
+    backend : the solves (the fast ones, or the reference for comparison)
+    cache : WarpCache, optional
+        Keeps the mesh topology and solver structures between calls (a device keeps
+        one; a scene seen again skips that set-up).
 
     Returns
     -------
@@ -135,7 +140,7 @@ def compute_warp(
     surface.check_usable()
     timings: dict[str, Any] = {}
     t0 = time.perf_counter()
-    mesh = MeshGeometry.build(surface, settings.grid)
+    mesh = MeshGeometry.build(surface, settings.grid, cache)
     v = backend.conformal(mesh)
     timings["conformal"] = time.perf_counter() - t0
     iterations = 0
@@ -189,13 +194,15 @@ def refine(
         v_new = solver.step(v, w)
         if not _orientation_ok(mesh, v_new):
             break  # keep the last fold-free iterate
-        new_placement = place(mesh, v_new, content_map.content_size, settings.up)
+        new_placement = place(mesh, v_new, content_map.content_size, settings.up, placement)
         motion = float(np.mean(np.linalg.norm(new_placement.apply(v_new) - xy, axis=1)))
         v, placement = v_new, new_placement
         iterations += 1
         steps.append(time.perf_counter() - t0)
         if motion < settings.tolerance:
             break
+    if iterations:  # the final placement: upright again, rectangle searched afresh
+        placement = place(mesh, v, content_map.content_size, settings.up)
     if timings is not None:
         timings["iterations"] = steps
     return v, placement, iterations, fraction

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 import numpy as np
 import scipy.sparse
@@ -18,8 +21,74 @@ from adaproj_edge.geometry.triangles import conformal_coords, grid_triangles, tr
 from adaproj_edge.warp.mesh import Grid
 
 IntArray = NDArray[np.intp]
+T = TypeVar("T")
 
 MIN_TRIANGLES = 8
+
+
+@dataclass
+class Topology:
+    """Which grid triangles the warp solves for, and everything that follows from that
+    alone: compact vertex numbering, edges, boundary, and (memoised) solver structures.
+
+    It depends on the surface only through which triangles are usable, so a device that
+    re-estimates the surface of the same scene keeps meeting the same topology.
+    """
+
+    cand: IntArray  # (T, 3) grid vertex indices of the kept triangles
+    used: NDArray[np.bool_]
+    index: IntArray
+    verts: IntArray
+    tris: IntArray
+    edges: IntArray
+    inverse: IntArray  # edge index of each triangle side, sides ordered (k -> k+1) by k
+    boundary: IntArray
+    memo: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_triangles(cls, cand: IntArray, n_vertices: int) -> Topology:
+        used = np.zeros(n_vertices, dtype=bool)
+        used[cand.ravel()] = True
+        index = np.full(n_vertices, -1, dtype=np.intp)
+        verts = np.flatnonzero(used)
+        index[verts] = np.arange(verts.size)
+        tris = index[cand]
+        e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+        edges, inverse = np.unique(np.sort(e, axis=1), axis=0, return_inverse=True)
+        return cls(cand, used, index, verts, tris, edges, inverse.ravel(), boundary_edges(tris))
+
+    def remember(self, name: str, make: Callable[[], T]) -> T:
+        """``make()`` once per topology (solver structures)."""
+        if name not in self.memo:
+            self.memo[name] = make()
+        out: T = self.memo[name]
+        return out
+
+
+class WarpCache:
+    """Topologies seen recently, so repeated warps of a scene skip the set-up work.
+
+    Owned by the caller (the device keeps one); :func:`MeshGeometry.build` without one
+    starts from scratch.
+    """
+
+    def __init__(self, size: int = 8) -> None:
+        self.size = size
+        self._items: OrderedDict[bytes, Topology] = OrderedDict()
+        self.hits = 0
+        self.misses = 0
+
+    def topology(self, key: bytes, make: Callable[[], Topology]) -> Topology:
+        if key in self._items:
+            self._items.move_to_end(key)
+            self.hits += 1
+            return self._items[key]
+        self.misses += 1
+        topo = make()
+        self._items[key] = topo
+        while len(self._items) > self.size:
+            self._items.popitem(last=False)
+        return topo
 
 
 @dataclass(frozen=True)
@@ -44,14 +113,33 @@ class MeshGeometry:
     grid: Grid
     grid_uv: FloatArray
     points: FloatArray
-    used: NDArray[np.bool_]
-    index: IntArray
-    verts: IntArray
-    tris: IntArray
+    topology: Topology
     coords: FloatArray
-    edges: IntArray
     lengths: FloatArray
-    boundary: IntArray
+
+    @property
+    def used(self) -> NDArray[np.bool_]:
+        return self.topology.used
+
+    @property
+    def index(self) -> IntArray:
+        return self.topology.index
+
+    @property
+    def verts(self) -> IntArray:
+        return self.topology.verts
+
+    @property
+    def tris(self) -> IntArray:
+        return self.topology.tris
+
+    @property
+    def edges(self) -> IntArray:
+        return self.topology.edges
+
+    @property
+    def boundary(self) -> IntArray:
+        return self.topology.boundary
 
     @property
     def n(self) -> int:
@@ -68,44 +156,41 @@ class MeshGeometry:
         return self.grid_uv.reshape(-1, 2)[self.verts]
 
     @classmethod
-    def build(cls, surface: Surface, grid: Grid) -> MeshGeometry:
+    def build(cls, surface: Surface, grid: Grid, cache: WarpCache | None = None) -> MeshGeometry:
         """Sample the surface at the grid and keep its largest connected piece."""
         grid_uv = grid.vertices(surface.projector)
         pts = surface.points_at(grid_uv).reshape(-1, 3)
         all_tris = grid_triangles(grid.rows, grid.cols)
         ok = np.all(np.isfinite(pts[all_tris]).all(axis=2), axis=1)
-        tri_pts = pts[all_tris[ok]]
-        normals = triangle_normals(tri_pts)
-        facing = np.all(np.isfinite(normals), axis=1)
+        normals = triangle_normals(pts[all_tris[ok]])
         # A triangle must face the projector (it was seen) and not be degenerate.
-        centroid = tri_pts.mean(axis=1)
-        facing &= np.sum(normals * centroid, axis=1) < 0
-        cand = all_tris[ok][facing]
-        if cand.shape[0] < MIN_TRIANGLES:
+        facing = np.all(np.isfinite(normals), axis=1)
+        facing &= np.sum(normals * pts[all_tris[ok]].mean(axis=1), axis=1) < 0
+        keep = np.zeros(all_tris.shape[0], dtype=bool)
+        keep[np.flatnonzero(ok)[facing]] = True
+        if keep.sum() < MIN_TRIANGLES:
             raise WarpError(
-                f"only {cand.shape[0]} grid triangles meet the surface; point the projector "
+                f"only {int(keep.sum())} grid triangles meet the surface; point the projector "
                 "at the surface or use a finer grid"
             )
-        cand = _largest_component(cand, pts.shape[0])
-        used = np.zeros(pts.shape[0], dtype=bool)
-        used[cand.ravel()] = True
-        index = np.full(pts.shape[0], -1, dtype=np.intp)
-        verts = np.flatnonzero(used)
-        index[verts] = np.arange(verts.size)
-        tris = index[cand]
-        e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
-        e, inverse = np.unique(np.sort(e, axis=1), axis=0, return_inverse=True)
+
+        def make() -> Topology:
+            return Topology.from_triangles(
+                _largest_component(all_tris[keep], pts.shape[0]), pts.shape[0]
+            )
+
+        key = f"{grid.cols}x{grid.rows}:".encode() + np.packbits(keep).tobytes()
+        topo = make() if cache is None else cache.topology(key, make)
+        cand = topo.cand
         tri_pts = unfold_creases(surface, grid_uv.reshape(-1, 2)[cand], cand, pts).points
         coords = conformal_coords(tri_pts)
         # edge lengths as the (unfolded) triangles have them; an edge shared by two
         # triangles gets the mean of their two values
         tri_len = np.linalg.norm(tri_pts - np.roll(tri_pts, -1, axis=1), axis=2)  # edge k: k->k+1
-        sums = np.bincount(inverse, weights=tri_len.T.ravel(), minlength=e.shape[0])
-        counts = np.bincount(inverse, minlength=e.shape[0])
-        lengths = sums / counts
-        return cls(
-            grid, grid_uv, pts, used, index, verts, tris, coords, e, lengths, boundary_edges(tris)
-        )
+        n_edges = topo.edges.shape[0]
+        sums = np.bincount(topo.inverse, weights=tri_len.T.ravel(), minlength=n_edges)
+        counts = np.bincount(topo.inverse, minlength=n_edges)
+        return cls(grid, grid_uv, pts, topo, coords, sums / counts)
 
 
 def _largest_component(tris: IntArray, n_vertices: int) -> IntArray:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from adaproj_edge.geometry.projector import FloatArray
-from adaproj_edge.geometry.rectangle import RASTER, inscribed_rectangle
+from adaproj_edge.geometry.rectangle import inscribed_rectangle
 from adaproj_edge.geometry.triangles import triangle_normals
 from adaproj_edge.warp.meshgeom import MeshGeometry
 
@@ -27,6 +27,7 @@ class Placement:
     angle: float
     scale: float
     offset: FloatArray
+    centre: FloatArray | None = None  # the rectangle's centre before scaling (warm starts)
 
     def apply(self, v: FloatArray) -> FloatArray:
         c, s = np.cos(self.angle), np.sin(self.angle)
@@ -81,18 +82,24 @@ def place(
     v: FloatArray,
     content_size: tuple[int, int],
     up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
-    resolution: int = RASTER,
+    previous: Placement | None = None,
 ) -> Placement:
     """Upright rotation and inscribed-rectangle similarity for positions ``v`` (n, 2).
 
-    ``resolution`` is the raster the rectangle search starts from.
+    With ``previous`` (the placement of a nearby iterate) its rotation is kept and the
+    rectangle search starts from its centre: the alternation's cheap placement.
     """
-    angle = upright_angle(mesh, v, np.asarray(up, dtype=np.float64))
+    if previous is None:
+        angle = upright_angle(mesh, v, np.asarray(up, dtype=np.float64))
+        start = None
+    else:
+        angle, start = previous.angle, previous.centre
     rot = Placement(angle, 1.0, np.zeros(2))
     vr = rot.apply(v)
     w, h = content_size
-    rect = inscribed_rectangle(vr, mesh.tris, w / h, resolution, mesh.boundary)
+    rect = inscribed_rectangle(vr, mesh.tris, w / h, boundary=mesh.boundary, start=start)
     scale = w / rect.width
     # content pixel centres at integers: the rectangle's corner is pixel (-0.5, -0.5)
     offset = np.array([-0.5 - scale * rect.x0, -0.5 - scale * rect.y0])
-    return Placement(angle, scale, offset)
+    centre = np.array([rect.x0 + rect.width / 2, rect.y0 + rect.height / 2])
+    return Placement(angle, scale, offset, centre)

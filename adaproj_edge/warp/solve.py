@@ -81,7 +81,9 @@ def solve_conformal(mesh: MeshGeometry) -> FloatArray:
     pa, pb = _pin_positions(mesh, a, b)
     x_fixed[2 * a : 2 * a + 2] = pa
     x_fixed[2 * b : 2 * b + 2] = pb
-    system = BandedLeastSquares(rows.cols, 2 * n, fixed)
+    system = mesh.topology.remember(
+        "conformal", lambda: BandedLeastSquares(rows.cols, 2 * n, fixed)
+    )
     x = system.solve(rows.vals, rows.rhs, np.ones(rows.rhs.size), x_fixed)
     return x.reshape(n, 2)
 
@@ -134,7 +136,9 @@ def solve_content_free(
     x_fixed = np.zeros(3 * n)
     x_fixed[3 * a : 3 * a + 2] = v_conformal[a]
     x_fixed[3 * b : 3 * b + 2] = v_conformal[b]
-    system = BandedLeastSquares(rows.cols, 3 * n, fixed)
+    system = mesh.topology.remember(
+        "content-free", lambda: BandedLeastSquares(rows.cols, 3 * n, fixed)
+    )
     x = system.solve(rows.vals, rows.rhs, weights, x_fixed).reshape(n, 3)
     return x[:, :2].copy(), x[:, 2].copy()
 
@@ -181,7 +185,10 @@ class ContentAwareSolver:
         self.pinned = a
         fixed = np.zeros(2 * n, dtype=bool)
         fixed[[2 * a, 2 * a + 1]] = True
-        self.system = BandedLeastSquares(self.rows.cols, 2 * n, fixed)
+        cols = self.rows.cols
+        self.system = mesh.topology.remember(
+            "content-aware", lambda: BandedLeastSquares(cols, 2 * n, fixed)
+        )
         self.l2 = float(np.mean(mesh.lengths**2))
         # apex vertex of each conformal row: rows are (triangle, role, component)
         self.apex = np.repeat(mesh.tris, 2, axis=1).reshape(-1)

@@ -17,12 +17,16 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+import scipy.sparse
+import scipy.sparse.linalg
 from numpy.typing import NDArray
 
 from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.projector import FloatArray
 
 IntArray = NDArray[np.intp]
+
+SPARSE_ABOVE = 3e7  # nf * band^2 (banded Cholesky flops) above which sparse LU is used
 
 
 @dataclass
@@ -61,9 +65,15 @@ class BandedLeastSquares:
         Number of unknowns.
     fixed : (n,) bool array
         Unknowns held at given values (removed from the system).
+    sparse : bool, optional
+        Factor with a sparse LU (SuperLU, minimum-degree ordering) instead of the banded
+        Cholesky; by default when the band is wide enough for that to win
+        (``nf * band^2 > SPARSE_ABOVE``, about a 30x30 grid and finer).
     """
 
-    def __init__(self, cols: IntArray, n: int, fixed: NDArray[np.bool_]) -> None:
+    def __init__(
+        self, cols: IntArray, n: int, fixed: NDArray[np.bool_], sparse: bool | None = None
+    ) -> None:
         self.cols = cols
         self.n = n
         self.fixed = fixed
@@ -75,7 +85,7 @@ class BandedLeastSquares:
             raise WarpError("no free unknowns in the warp system")
         fc = free_index[np.where(cols >= 0, cols, n)]  # (m, k) free index or -1
         self.fc = fc
-        m, k = cols.shape
+        k = cols.shape[1]
         ia, ib = np.triu_indices(k)  # pairs (a, b), a <= b within a row
         self.pair_a = ia
         self.pair_b = ib
@@ -91,7 +101,25 @@ class BandedLeastSquares:
         flat = (band + lo - hi) * self.nf + hi
         self.dump = (band + 1) * self.nf
         self.flat = np.where(ok, flat, self.dump).ravel()
-        self.row_of_pair = np.repeat(np.arange(m), ia.size)
+        self.sparse = (self.nf * band * band > SPARSE_ABOVE) if sparse is None else sparse
+        if self.sparse:
+            self._sparse_pattern()
+
+    def _sparse_pattern(self) -> None:
+        """The symmetric CSC pattern of the normal matrix, and where each of its entries
+        sits in the band storage."""
+        nf, band = self.nf, self.band
+        used = np.unique(self.flat[self.flat < self.dump])
+        hi = used % nf
+        lo = used // nf - band + hi
+        off = lo != hi
+        rows = np.concatenate([lo, hi[off]])
+        cols = np.concatenate([hi, lo[off]])
+        src = np.concatenate([used, used[off]])
+        tag = np.arange(1, src.size + 1, dtype=np.float64)
+        csc = scipy.sparse.csc_matrix((tag, (rows, cols)), shape=(nf, nf))
+        self.csc = csc
+        self.csc_src = src[np.rint(csc.data).astype(np.intp) - 1]
 
     def normal_band(self, vals: FloatArray, weights: FloatArray) -> FloatArray:
         """The upper band (band + 1, nf) of ``A^T W A``."""
@@ -99,6 +127,23 @@ class BandedLeastSquares:
         ab = np.bincount(self.flat, weights=prod.ravel(), minlength=self.dump + 1)
         out: FloatArray = ab[: self.dump].reshape(self.band + 1, self.nf).astype(np.float64)
         return out
+
+    def _solve_normal(self, ab: FloatArray, b: FloatArray) -> FloatArray:
+        try:
+            if self.sparse:
+                self.csc.data = ab.ravel()[self.csc_src]
+                # symmetric positive definite: keep the pivots on the diagonal
+                lu = scipy.sparse.linalg.splu(
+                    self.csc,
+                    permc_spec="MMD_AT_PLUS_A",
+                    diag_pivot_thresh=0.0,
+                    options={"SymmetricMode": True},
+                )
+                return np.asarray(lu.solve(b), dtype=np.float64)
+            cb = scipy.linalg.cholesky_banded(ab, lower=False, check_finite=False)
+            return np.asarray(scipy.linalg.cho_solve_banded((cb, False), b, check_finite=False))
+        except (np.linalg.LinAlgError, RuntimeError):
+            raise WarpError("the warp system is singular (the mesh is disconnected?)") from None
 
     def rhs(
         self, vals: FloatArray, const: FloatArray, weights: FloatArray, x_fixed: FloatArray
@@ -111,26 +156,13 @@ class BandedLeastSquares:
         out = np.bincount(self.fc[ok], weights=contrib[ok], minlength=self.nf).astype(np.float64)
         return out
 
-    def factor(self, vals: FloatArray, weights: FloatArray) -> FloatArray:
-        """Cholesky factor of the banded normal matrix (LAPACK pbtrf)."""
-        ab = self.normal_band(vals, weights)
-        try:
-            return np.asarray(scipy.linalg.cholesky_banded(ab, lower=False, check_finite=False))
-        except np.linalg.LinAlgError:
-            raise WarpError("the warp system is singular (the mesh is disconnected?)") from None
-
     def solve(
-        self,
-        vals: FloatArray,
-        const: FloatArray,
-        weights: FloatArray,
-        x_fixed: FloatArray,
-        factor: FloatArray | None = None,
+        self, vals: FloatArray, const: FloatArray, weights: FloatArray, x_fixed: FloatArray
     ) -> FloatArray:
         """Minimiser x (n,), with fixed unknowns copied from ``x_fixed``."""
-        cb = self.factor(vals, weights) if factor is None else factor
-        b = self.rhs(vals, const, weights, x_fixed)
-        xs = scipy.linalg.cho_solve_banded((cb, False), b, check_finite=False)
+        xs = self._solve_normal(
+            self.normal_band(vals, weights), self.rhs(vals, const, weights, x_fixed)
+        )
         x = np.array(x_fixed, dtype=np.float64, copy=True)
         x[~self.fixed] = xs
         if not np.all(np.isfinite(x)):

@@ -16,8 +16,8 @@ from adaproj_edge.warp.system import BandedLeastSquares
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**31), n=st.integers(3, 30), k=st.integers(1, 4))
-def test_banded_solve_matches_dense_least_squares(seed: int, n: int, k: int) -> None:
+@given(seed=st.integers(0, 2**31), n=st.integers(3, 30), k=st.integers(1, 4), sparse=st.booleans())
+def test_banded_solve_matches_dense_least_squares(seed: int, n: int, k: int, sparse: bool) -> None:
     rng = np.random.default_rng(seed)
     m = 3 * n
     # rows touching nearby unknowns (a band), plus one identity row each (full rank)
@@ -35,7 +35,7 @@ def test_banded_solve_matches_dense_least_squares(seed: int, n: int, k: int) -> 
     fixed = np.zeros(n, dtype=bool)
     fixed[int(rng.integers(0, n))] = True
     x_fixed = np.where(fixed, rng.normal(size=n), 0.0)
-    x = BandedLeastSquares(cols, n, fixed).solve(vals, rhs, weights, x_fixed)
+    x = BandedLeastSquares(cols, n, fixed, sparse).solve(vals, rhs, weights, x_fixed)
     # the same problem, dense
     a = np.zeros((m + n, n))
     for r in range(m + n):
