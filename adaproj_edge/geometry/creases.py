@@ -25,6 +25,7 @@ IntArray = NDArray[np.intp]
 
 ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, of a crease
 CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this make a crease
+FIT = 0.25  # the two planes must explain the surface this much better than the triangle
 
 
 @dataclass(frozen=True)
@@ -124,6 +125,12 @@ def unfold_creases(
         group_a = [k for k in range(3) if k not in group_b]
         na, nb = normals[group_a[0]], normals[group_b[0]]
         pa, pb = tri_pts[t, group_a[0]], tri_pts[t, group_b[0]]
+        # a crease only if the two planes explain the surface inside the triangle (a
+        # strongly curved smooth patch, e.g. near a silhouette, is left as it is)
+        probe = xs[t][np.all(np.isfinite(xs[t]), axis=1)]
+        fit = np.minimum(np.abs((probe - pa) @ na), np.abs((probe - pb) @ nb))
+        if probe.size == 0 or float(np.max(fit)) > FIT * ROUGH * float(size[t]):
+            continue
         rot, origin = _unfolding_rotation(pa, na, pb, nb)
         out[t, group_b] = origin + (tri_pts[t, group_b] - origin) @ rot.T
         unfolding.folded[t] = True

@@ -182,10 +182,13 @@ def refine(
     iterations = 0
     fraction = 0.0
     steps: list[float] = []
+    w = np.zeros(mesh.n)
     for _ in range(settings.max_iterations):
         t0 = time.perf_counter()
         xy = placement.apply(v)
-        w = content_map.weights(xy).astype(np.float64)
+        # eq. 8, with hysteresis: a vertex that showed salient content stays salient,
+        # so the salient set only grows and the alternation cannot oscillate
+        w = np.maximum(w, content_map.weights(xy).astype(np.float64))
         fraction = float(w.mean())
         if w.min() == w.max():  # nothing or everything salient: E' already is the answer
             break
@@ -201,8 +204,6 @@ def refine(
         steps.append(time.perf_counter() - t0)
         if motion < settings.tolerance:
             break
-    if iterations:  # the final placement: upright again, rectangle searched afresh
-        placement = place(mesh, v, content_map.content_size, settings.up)
     if timings is not None:
         timings["iterations"] = steps
     return v, placement, iterations, fraction
