@@ -180,3 +180,8 @@ def test_smooth_lattice_keeps_planes_and_creases_and_removes_noise() -> None:
     holes[10:12, 10:12] = np.nan
     assert np.isnan(smooth_lattice(holes, 2.0)[10:12, 10:12]).all()
     assert smooth_lattice(plane, 0.3) is plane  # too little to smooth
+    wide = smooth_lattice(noisy, 2.0, scales=(1.0, 2.0, 4.0))
+    assert np.std(wide - plane) < 0.8 * np.std(smooth_lattice(noisy, 2.0) - plane)
+    bump = plane + 0.05 * np.exp(-((u - 30) ** 2 + (v - 20) ** 2) / 8.0)  # a small dome
+    kept = smooth_lattice(bump, 2.0, scales=(1.0, 2.0, 4.0))
+    assert kept[20, 30] - plane[20, 30] > 0.03  # the wide scale is refused there

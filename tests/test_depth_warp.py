@@ -6,13 +6,14 @@ noise, the surface tracked on the warp grid's 21x21 vertices; both warps
 (conformal, 20x20 grid) are scored by ``tests/distortion.py`` against the analytic
 surface the light really lands on: mean angle distortion and size inconsistency.
 The true warp is computed from the true surface sampled on the same lattice.
+Measured numbers: ``.venv/bin/python tools/measure_depth.py``.
 """
 
 from __future__ import annotations
 
 import pytest
 
-from adaproj_edge.geometry.analytic import get_surface
+from adaproj_edge.geometry.analytic import SURFACES, get_surface
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.session.motion import HandMotion
@@ -43,23 +44,15 @@ def distortions(name: str) -> tuple[Distortion, Distortion]:
     return out[0], out[1]
 
 
+# A distortion this small counts as none: where the true warp has (almost) none, as on
+# a plane, "twice the true distortion" would ask for exactly zero.
+NONE = 0.003
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "name",
-    [
-        "cylinder-convex",
-        "sphere-convex",
-        "bowl",
-        pytest.param(
-            "corner",
-            marks=pytest.mark.xfail(
-                reason="the crease: angle distortion 2.4x that of the true warp", strict=True
-            ),
-        ),
-    ],
-)
+@pytest.mark.parametrize("name", list(SURFACES))
 def test_warp_from_the_estimate_is_within_twice_the_true_distortion(name: str) -> None:
     est, true = distortions(name)
     assert est.folds == 0
-    assert est.angle_mean <= 2 * true.angle_mean, (est.angle_mean, true.angle_mean)
-    assert est.size_std <= 2 * true.size_std, (est.size_std, true.size_std)
+    assert est.angle_mean <= 2 * true.angle_mean + NONE, (est.angle_mean, true.angle_mean)
+    assert est.size_std <= 2 * true.size_std + NONE, (est.size_std, true.size_std)

@@ -19,6 +19,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from adaproj_edge.geometry.analytic import SURFACES  # noqa: E402
 from adaproj_edge.session.reader import read_session  # noqa: E402
 from adaproj_edge.session.simulator import scene_of_session  # noqa: E402
 from tests.test_depth_accuracy import FIXTURES, grid_errors  # noqa: E402
@@ -37,12 +38,13 @@ def main() -> int:
             f"  p95 {1000 * np.percentile(e, 95):5.2f} mm  max {1000 * e.max():5.1f} mm"
         )
     print("warp distortion, estimated vs true surface (angle mean, size std)")
-    for name in ("corner", "cylinder-convex", "sphere-convex", "bowl"):
+    for name in SURFACES:
         est, true = distortions(name)
         print(
             f"  {name:16s} angle {est.angle_mean:.4f} / {true.angle_mean:.4f}"
-            f" = {est.angle_mean / true.angle_mean:4.2f}x   size {est.size_std:.4f} /"
-            f" {true.size_std:.4f} = {est.size_std / true.size_std:4.2f}x  folds {est.folds}"
+            f" = {est.angle_mean / max(true.angle_mean, 1e-9):4.2f}x   size {est.size_std:.4f} /"
+            f" {true.size_std:.4f} = {est.size_std / max(true.size_std, 1e-9):4.2f}x"
+            f"  folds {est.folds}"
         )
     return 0
 

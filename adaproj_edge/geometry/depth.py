@@ -50,7 +50,7 @@ class DepthSettings:
     min_depth_m: float = 0.35
     max_depth_m: float = 6.0
     speckle_rel: float = 0.03
-    smooth_sigma_px: float = 1.5
+    smooth_sigma_px: float = 0.7
     min_support: float = 0.35
     iterations: int = 8
     max_hole_nodes: int = 16
@@ -60,6 +60,8 @@ class DepthSettings:
     smooth_m: float = 0.06
     smooth_max_nodes: float = 3.0
     max_supersample: int = 4
+    smooth_scales: tuple[float, ...] = (1.0, 2.0, 4.0)
+    smooth_accept: float = 4.0
 
 
 @dataclass(frozen=True)
@@ -197,9 +199,9 @@ def intersect_rays(
     return np.where(ok, s, np.nan), np.where(ok, sup_at, 0.0)
 
 
-def smooth_lattice(
+def side_window_fit(
     s: FloatArray, sigma_nodes: float, min_weight: float = 3.0, switch: float = 3.0
-) -> FloatArray:
+) -> tuple[FloatArray, FloatArray]:
     """Local quadratic regression of inverse depth over the lattice (rows, cols), in
     side windows so that creases and steps stay sharp.
 
@@ -209,11 +211,13 @@ def smooth_lattice(
     used unless one half fits ``switch`` times better (the node is next to a crease,
     where only the half on its own side belongs to its face). Inverse depth is affine
     in image coordinates on a plane, so walls stay exact; quadrics (spheres,
-    cylinders, bowls) are followed up to third-order terms. Nodes without enough
-    neighbours keep their value; unknown nodes stay unknown.
+    cylinders, bowls) are followed up to third-order terms.
+
+    Returns
+    -------
+    q : (rows, cols) fitted inverse depth, NaN where there is no fit
+    rss : (rows, cols) weighted mean squared residual of the chosen window
     """
-    if sigma_nodes < 0.5:
-        return s
     r = int(np.ceil(2 * sigma_nodes))
     valid = np.isfinite(s) & (s > 0)
     q = np.where(valid, 1.0 / np.where(valid, s, 1.0), 0.0)
@@ -229,9 +233,10 @@ def smooth_lattice(
         out = cv2.filter2D(img, cv2.CV_64F, kernel, borderType=cv2.BORDER_CONSTANT)
         return np.asarray(out, dtype=np.float64)
 
-    fits, rss, enough = [], [], []
+    fits, rss, enough, var = [], [], [], []
     for half in halves:
         w = g * half
+        wbar = float(np.sum(w * w) / np.sum(w))
         mom = {}
         for a1, b1 in powers:
             for a2, b2 in powers:
@@ -246,12 +251,17 @@ def smooth_lattice(
         A[~ok] = np.eye(6)
         bq[~ok] = 0.0
         coef = np.linalg.solve(A + 1e-9 * np.eye(6), bq[..., None])[..., 0]
+        e0 = np.zeros(6)
+        e0[0] = 1.0
+        a00 = np.linalg.solve(A + 1e-9 * np.eye(6), np.broadcast_to(e0, bq.shape)[..., None])
+        a00 = a00[..., 0, 0]
         # weighted residual sum of squares from the moments: S - 2 c.b + c^T A c
         res = sqq - 2 * np.sum(coef * bq, -1) + np.einsum("...i,...ij,...j->...", coef, A, coef)
         with np.errstate(invalid="ignore", divide="ignore"):
             rss.append(np.where(ok, np.maximum(res, 0.0) / mom[(0, 0)], np.inf))
         fits.append(coef[..., 0])
         enough.append(ok)
+        var.append(rss[-1] * a00 * wbar)
     R = np.stack(rss)
     side = 1 + np.argmin(R[1:], axis=0)
     best_side = np.take_along_axis(R[1:], (side - 1)[None], axis=0)[0]
@@ -261,8 +271,35 @@ def smooth_lattice(
         ok_any[0], choice, np.where(ok_any.any(axis=0), np.argmax(ok_any, axis=0), -1)
     )
     qf = np.take_along_axis(np.stack(fits), np.maximum(choice, 0)[None], axis=0)[0]
+    vf = np.take_along_axis(np.stack(var), np.maximum(choice, 0)[None], axis=0)[0]
+    good = valid & (choice >= 0) & (qf > 0)
+    return np.where(good, qf, np.nan), np.where(good, vf, np.inf)
+
+
+def smooth_lattice(
+    s: FloatArray,
+    sigma_nodes: float,
+    scales: tuple[float, ...] = (1.0,),
+    accept: float = 1.5,
+) -> FloatArray:
+    """Side-window quadratic smoothing (:func:`side_window_fit`) at ``sigma_nodes``
+    times each of ``scales`` (increasing): a node takes the largest scale whose fit is
+    still about as good (residual at most ``accept`` times) as the scale below it, so
+    flat and gently curved parts get the most smoothing and tighter shapes keep
+    their detail. Unknown nodes stay unknown; nodes without a fit keep their value.
+    """
+    if sigma_nodes < 0.5:
+        return s
+    valid = np.isfinite(s) & (s > 0)
+    q, var = side_window_fit(s, sigma_nodes * scales[0])
+    for k in scales[1:]:
+        q2, var2 = side_window_fit(s, sigma_nodes * k)
+        with np.errstate(invalid="ignore"):
+            take = np.isfinite(q2) & (np.abs(q2 - q) <= accept * np.sqrt(var))
+        q = np.where(take, q2, q)
+        var = np.where(take, var2, var)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(valid & (choice >= 0) & (qf > 0), 1.0 / qf, np.where(valid, s, np.nan))
+        return np.where(valid & np.isfinite(q) & (q > 0), 1.0 / q, np.where(valid, s, np.nan))
 
 
 def node_spacing_m(projector: Projector, shape: tuple[int, int], depth_m: float) -> float:
@@ -387,7 +424,7 @@ def estimate_surface(
     if np.isfinite(s).any():
         spacing = node_spacing_m(p, fine, float(np.nanmedian(s)))
         sigma = min(settings.smooth_m / spacing, settings.smooth_max_nodes)
-        s = smooth_lattice(s, sigma)
+        s = smooth_lattice(s, sigma, settings.smooth_scales, settings.smooth_accept)
     s, sup = s[::k, ::k], sup[::k, ::k]
     s, filled = fill_holes(s, settings.max_hole_nodes)
     points = dirs * s[..., None]
