@@ -14,10 +14,12 @@ Steps (:func:`estimate_surface`):
    back-projects, transforms to frame P and resamples in projector space at once,
    and keeps creases sharp;
 4. this is done on a lattice fine enough to use the data between coarse nodes
-   (:func:`supersampling`); isolated spikes are rejected, the surface is smoothed at a
-   scale of ``smooth_m`` by a local quadratic fit in side windows that keeps creases
-   (:func:`smooth_lattice`), and the requested lattice is taken from it; small holes
-   (not touching the frame border) are filled from their neighbours;
+   (:func:`supersampling`); isolated spikes are rejected, the surface is smoothed by
+   local quadratic fits of inverse depth in side windows, which keep creases, at
+   ``smooth_m`` and wider scales, each node taking the widest scale that agrees with
+   the narrower ones (:func:`smooth_lattice`), and the requested lattice is taken
+   from it; small holes (not touching the frame border) are filled from their
+   neighbours;
 5. every node gets a confidence in [0, 1] from support, the stereo noise expected at
    its depth (grows with z^2), the viewing angle, and whether it was filled.
 
