@@ -9,8 +9,8 @@ from pathlib import Path
 from typing import Any
 
 from adaproj_edge.errors import ImageError
-from adaproj_edge.link.device import MODES
 from adaproj_edge.link.store import Limits, check_image, check_name
+from adaproj_edge.warp.engine import MODES
 
 DEFAULT_PORT = "/dev/ttyACM0"
 
@@ -22,7 +22,7 @@ def add_port(p: argparse.ArgumentParser) -> None:
 
 
 def add_settings(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--mode", choices=MODES, help="warp mode (device default: content-aware)")
+    p.add_argument("--mode", choices=MODES, help="warp mode (device default: content)")
     p.add_argument("--threshold", type=float, help="content-map threshold in [0, 1]")
 
 

@@ -16,12 +16,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
 from adaproj_edge.errors import AdaprojError, ContentError, ImageError
 from adaproj_edge.fileio import read_image
+from adaproj_edge.warp.engine import MODES
 
 log = logging.getLogger(__name__)
 
-MODES = ("content-aware", "content-free")
 
 
 @dataclass(frozen=True)
@@ -31,14 +32,14 @@ class Settings:
     Attributes
     ----------
     mode : str
-        ``"content-aware"`` (distortion goes where the content map is low) or
-        ``"content-free"`` (the paper's content-free warp).
+        A warp mode (:data:`adaproj_edge.warp.engine.MODES`): ``"content"`` (distortion
+        goes where the content map is low), ``"conformal"`` or ``"standard"`` (no warp).
     threshold : float
-        Content-map level in [0, 1] above which a region counts as important.
+        Content-map level T in [0, 1] from which a region counts as important (eq. 5).
     """
 
-    mode: str = "content-aware"
-    threshold: float = 0.5
+    mode: str = "content"
+    threshold: float = DEFAULT_THRESHOLD
 
     @classmethod
     def parse(cls, raw: dict[str, Any]) -> Settings:

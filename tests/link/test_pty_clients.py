@@ -72,7 +72,7 @@ def test_smpclient_drives_every_adaproj_command(running: Running) -> None:
             await client.upload(c, mask, "wall-mask.png")
             listed = await client.call(c, client.ListRead())
             assert {i["name"] for i in listed.items} == {"wall.png", "wall-mask.png"}
-            settings = {"mode": "content-free", "threshold": 0.3}
+            settings = {"mode": "conformal", "threshold": 0.3}
             act = client.ActivateWrite(image="wall.png", mask="wall-mask.png", settings=settings)
             assert (await client.call(c, act)).active["settings"] == settings
             status = await client.call(c, client.StatusRead())

@@ -117,7 +117,7 @@ def test_adaproj_group_commands(server: Server) -> None:
     listed = ask(server, ListRead())
     assert [i["name"] for i in listed["items"]] == ["img.png", "mask.png"]
     assert listed["active"] is None and listed["quota"] == 4 * 2**20
-    settings = {"mode": "content-free", "threshold": 0.25}
+    settings = {"mode": "conformal", "threshold": 0.25}
     act = ask(server, ActivateWrite(image="img.png", mask="mask.png", settings=settings))
     assert act["active"] == {"image": "img.png", "mask": "mask.png", "settings": settings}
     bad = ask(server, ActivateWrite(image="img.png", settings={"mode": "fisheye"}))

@@ -145,11 +145,11 @@ def test_decompression_bomb_refused_from_its_header(store: ContentStore) -> None
 def test_failed_upload_leaves_committed_and_active_alone(store: ContentStore) -> None:
     good = png_bytes(32, 32, seed=1)
     store.begin("show.png", len(good), good)
-    store.set_active(ActiveRecord("show.png", None, {"mode": "content-free"}))
+    store.set_active(ActiveRecord("show.png", None, {"mode": "conformal"}))
     other = png_bytes(32, 32, seed=2)
     store.begin("show.png", len(other), other[:100])  # replacement started, never finished
     assert (store.root / "show.png").read_bytes() == good
-    assert store.active() == ActiveRecord("show.png", None, {"mode": "content-free"})
+    assert store.active() == ActiveRecord("show.png", None, {"mode": "conformal"})
     broken = other[:-10] + b"\x00" * 10
     store.begin("show.png", len(broken), broken[:100])
     with pytest.raises(ImageError):
