@@ -1,0 +1,114 @@
+"""Content-free warps cached per pose, so that returning to a pose is instant.
+
+The key combines the device orientation (from the IMU, in ``orientation_bin_rad``
+bins) with a compact signature of the surface (the median depth of a 3x3 split of
+the lattice, in ``depth_bin_m`` bins). A key match is only a candidate: before reuse
+the cached warp's surface is compared with the current one node by node
+(:meth:`CachedWarp.matches`), so two different scenes that share a key never swap
+warps. At most ``size`` entries are kept (least recently used go first).
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.render.frame import RemapMaps
+from adaproj_edge.warp.mesh import Warp
+from adaproj_edge.warp.placement import Placement
+
+Key = tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class CachedWarp:
+    """A content-free warp, its display maps, and what it needs for a warm start.
+
+    ``depth`` is the surface's lattice depth (rows, cols) it was computed from, NaN
+    where unknown; ``v``/``placement``/``verts`` the solver's positions for them.
+    """
+
+    warp: Warp
+    maps: RemapMaps
+    depth: FloatArray
+    v: FloatArray
+    placement: Placement
+    verts: NDArray[np.intp]
+
+    def matches(self, depth: FloatArray, max_rel: float, min_overlap: float) -> bool:
+        """Whether the current lattice ``depth`` is the surface this warp was made for:
+        valid nodes agree (``min_overlap``) and their median relative depth change is
+        below ``max_rel``."""
+        if depth.shape != self.depth.shape:
+            return False
+        a, b = np.isfinite(depth), np.isfinite(self.depth)
+        both = a & b
+        if both.sum() < min_overlap * max(int(a.sum()), int(b.sum()), 1):
+            return False
+        rel = np.abs(depth[both] - self.depth[both]) / self.depth[both]
+        return bool(np.median(rel) <= max_rel)
+
+
+def surface_signature(depth: FloatArray, depth_bin_m: float) -> Key:
+    """Median depth of each cell of a 3x3 split of the lattice, binned (-1: empty)."""
+    rows, cols = depth.shape
+    out = []
+    for i in range(3):
+        for j in range(3):
+            block = depth[i * rows // 3 : (i + 1) * rows // 3, j * cols // 3 : (j + 1) * cols // 3]
+            good = block[np.isfinite(block)]
+            out.append(int(np.floor(np.median(good) / depth_bin_m)) if good.size else -1)
+    return tuple(out)
+
+
+def pose_key(
+    orientation: FloatArray, depth: FloatArray, orientation_bin_rad: float, depth_bin_m: float
+) -> Key:
+    """The cache key of an orientation (rotation vector, 3) and a lattice depth."""
+    o = tuple(int(np.floor(x / orientation_bin_rad)) for x in orientation)
+    return o + surface_signature(depth, depth_bin_m)
+
+
+class PoseCache:
+    """Bounded LRU of :class:`CachedWarp` by :func:`pose_key`."""
+
+    def __init__(self, size: int = 8) -> None:
+        self.size = size
+        self._items: OrderedDict[Key, CachedWarp] = OrderedDict()
+        self.hits = 0
+        self.misses = 0
+        self.rejected = 0
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def get(
+        self, key: Key, depth: FloatArray, max_rel: float = 0.01, min_overlap: float = 0.97
+    ) -> CachedWarp | None:
+        """The entry for ``key`` if it fits the current ``depth``; counts the outcome."""
+        item = self._items.get(key)
+        if item is None:
+            self.misses += 1
+            return None
+        if not item.matches(depth, max_rel, min_overlap):
+            self.rejected += 1
+            del self._items[key]
+            return None
+        self._items.move_to_end(key)
+        self.hits += 1
+        return item
+
+    def put(self, key: Key, item: CachedWarp) -> None:
+        if self.size <= 0:
+            return
+        self._items[key] = item
+        self._items.move_to_end(key)
+        while len(self._items) > self.size:
+            self._items.popitem(last=False)
+
+    def clear(self) -> None:
+        self._items.clear()

@@ -1,0 +1,613 @@
+"""The device runtime: states, gestures, motion, re-estimation, faults.
+
+States
+------
+``boot`` -> ``idle`` (the active content shown plainly, letterboxed) -> press ->
+``capturing`` (a few depth frames averaged) -> ``projecting`` (the warped content).
+
+Gestures (one button)
+---------------------
+- **press** (short, alone): capture the surface and project; while projecting, re-aim
+  (capture again).
+- **double press** (second press within ``double_press_s`` of the first release):
+  next content item.
+- **long press** (held ``long_press_s`` or more): toggle content-aware / plain (no
+  pre-warp) projection.
+
+A single press is acted on once the double-press window has passed.
+
+While projecting
+----------------
+The IMU decides *moving* / *settled* with hysteresis (:mod:`adaproj_edge.app.motion`).
+Moving: the surface is re-estimated at most every ``moving_interval_s`` and the
+content-free warp follows at once (from the pose cache when the pose was seen, checked
+against the current depth). Settled: estimates are averaged over time
+(:class:`~adaproj_edge.geometry.depth.SurfaceFilter`), the content-aware refinement runs
+once, warm-started, and after that the warp is redone only when the averaged surface
+moves more than ``hysteresis_rel`` (median relative depth), so a still hand gives a
+still image.
+
+Faults
+------
+Depth dropouts and holes, a camera that stops sending (or raises), IMU errors, a
+surface out of range, a warp that cannot be computed: the last good frame stays up
+with a small status mark in the top-right corner, the reason is logged and listed in
+:meth:`Runtime.status`, and the next good input clears it.
+
+The runtime never reads a clock of its own: time is the injected clock's, so a replay
+on a virtual clock makes the same decisions every time. It implements the link's
+:class:`~adaproj_edge.link.device.DeviceRuntime`; content arriving from the link's
+thread is queued and taken up by the runtime's own thread.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.app.motion import MotionSettings, MotionTracker
+from adaproj_edge.app.pipeline import WarpPipeline
+from adaproj_edge.app.posecache import CachedWarp, PoseCache, pose_key
+from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.errors import AdaprojError, ImageError
+from adaproj_edge.fileio import read_image
+from adaproj_edge.geometry.calibration import Calibration
+from adaproj_edge.geometry.depth import DepthSettings, SurfaceFilter, estimate_surface
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.hal.button import ButtonEvent
+from adaproj_edge.hal.clock import Clock
+from adaproj_edge.hal.depth import DepthFrame
+from adaproj_edge.hal.display import Display
+from adaproj_edge.hal.imu import ImuSample
+from adaproj_edge.link.device import Content, Settings
+from adaproj_edge.render.frame import RemapMaps, render_frame
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.mesh import Grid, Warp
+
+log = logging.getLogger(__name__)
+
+Image = NDArray[np.uint8]
+ContentMapFn = Callable[[Image, NDArray[np.float32] | None, float], ContentMap]
+
+
+class State(enum.Enum):
+    BOOT = "boot"
+    IDLE = "idle"
+    CAPTURING = "capturing"
+    PROJECTING = "projecting"
+
+
+@dataclass(frozen=True)
+class AppSettings:
+    """Tuning of the runtime (seconds, metres, fractions)."""
+
+    grid: Grid = field(default_factory=Grid)
+    capture_frames: int = 3
+    capture_timeout_s: float = 0.6
+    double_press_s: float = 0.35
+    long_press_s: float = 0.8
+    moving_interval_s: float = 0.1
+    still_interval_s: float = 0.2
+    hysteresis_rel: float = 0.004
+    depth_timeout_s: float = 0.5
+    min_coverage: float = 0.3
+    pose_cache_size: int = 8
+    caching: bool = True
+    warm_start: bool = True
+    map_scale: int = 2
+    orientation_bin_rad: float = 0.03
+    depth_bin_m: float = 0.03
+    motion: MotionSettings = field(default_factory=MotionSettings)
+    depth: DepthSettings = field(default_factory=DepthSettings)
+
+    def grid_shape(self) -> tuple[int, int]:
+        """The surface lattice: one node per warp grid vertex."""
+        return self.grid.rows + 1, self.grid.cols + 1
+
+
+@dataclass
+class Item:
+    """A content item: its image, content map (None: uniform) and settings."""
+
+    name: str
+    image: Image
+    content_map: ContentMap | None
+    settings: Settings = field(default_factory=Settings)
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return int(self.image.shape[1]), int(self.image.shape[0])
+
+
+def mask_content_map(
+    image: Image, mask: NDArray[np.float32] | None, threshold: float
+) -> ContentMap:
+    """A content map from the user mask alone (uniform without one)."""
+    h, w = image.shape[:2]
+    values = np.zeros((h, w), np.float32) if mask is None else mask
+    return ContentMap(np.asarray(values, np.float32), (w, h), threshold)
+
+
+def saliency_content_map(
+    image: Image, mask: NDArray[np.float32] | None, threshold: float
+) -> ContentMap:
+    """Saliency (the default ONNX model) max the user mask."""
+    from adaproj_edge.content.contentmap import content_map_for
+
+    return content_map_for(image, mask, threshold=threshold)
+
+
+FrameHook = Callable[[int, Image, dict[str, Any]], None]
+
+MARK_COLOURS = {"camera": (0, 0, 255), "depth": (0, 160, 255), "range": (255, 0, 255)}
+
+
+class Runtime:
+    """The projector's runtime; feed it sensor input through the ``on_*`` methods and
+    call :meth:`tick` regularly (a driver loop does both: live or replayed)."""
+
+    def __init__(
+        self,
+        calibration: Calibration,
+        display: Display,
+        clock: Clock,
+        items: list[Item],
+        settings: AppSettings | None = None,
+        content_map_fn: ContentMapFn = saliency_content_map,
+        on_frame: FrameHook | None = None,
+    ) -> None:
+        if not items:
+            raise AdaprojError("the runtime needs at least one content item")
+        self.calibration = calibration
+        self.display = display
+        self.clock = clock
+        self.settings = s = settings or AppSettings()
+        self.items = list(items)
+        self.current = 0
+        self.content_map_fn = content_map_fn
+        self.on_frame = on_frame
+        self.motion = MotionTracker(calibration.R_P_I, s.motion)
+        self.pipeline = WarpPipeline(
+            calibration.projector, s.grid, s.map_scale, s.warm_start, s.caching
+        )
+        self.pose_cache = PoseCache(s.pose_cache_size if s.caching else 0)
+        self.filter = SurfaceFilter()
+        self.state = State.BOOT
+        self.plain = False
+        self.faults: dict[str, str] = {}
+        self.errors: list[str] = []
+        self.events: list[dict[str, Any]] = []
+        self.states: list[tuple[int, str]] = []
+        self.updates: list[dict[str, Any]] = []
+        self.latencies_ms: list[float] = []
+        self.counters = {
+            "content_free": 0,
+            "content_aware": 0,
+            "cache_hits": 0,
+            "cache_misses": 0,
+            "cache_rejected": 0,
+            "estimates": 0,
+            "skipped_frames": 0,
+            "frames_shown": 0,
+        }
+        self.frame: Image = np.zeros(
+            (calibration.projector.height, calibration.projector.width, 3), np.uint8
+        )
+        self.shown_map: NDArray[np.float32] | None = None
+        self.shown_warp: Warp | None = None
+        self.surface: Surface | None = None
+        self._maps: RemapMaps | None = None
+        self._good: Image | None = None
+        self._cf: CachedWarp | None = None
+        self._shown_depth: NDArray[np.float64] | None = None
+        self._refine_pending = False
+        self._captured = 0
+        self._capture_ns = 0
+        self._last_depth_ns: int | None = None
+        self._last_estimate_ns: int | None = None
+        self._press_ns: int | None = None
+        self._single_ns: int | None = None
+        self._motion_ns: int | None = None
+        self._pending: list[Item] = []
+        self._lock = threading.Lock()
+
+    # ------------------------------------------------------------------ helpers
+    @property
+    def item(self) -> Item:
+        return self.items[self.current]
+
+    def _now(self) -> int:
+        return self.clock.now_ns()
+
+    def _event(self, name: str, **detail: Any) -> None:
+        self.events.append({"t_ns": self._now(), "event": name, **detail})
+
+    def _set_state(self, state: State) -> None:
+        if state != self.state or not self.states:
+            self.state = state
+            self.states.append((self._now(), state.value))
+            log.info("state %s", state.value)
+
+    def _fault(self, kind: str, message: str) -> None:
+        if self.faults.get(kind) == message:
+            return
+        new = kind not in self.faults
+        self.faults[kind] = message
+        self.errors = [*self.errors, message][-10:]
+        log.warning("%s: %s", kind, message)
+        if new:
+            self._event("fault", kind=kind, message=message)
+            self._redraw()
+
+    def _clear(self, *kinds: str) -> None:
+        gone = [k for k in kinds if k in self.faults]
+        for k in gone:
+            del self.faults[k]
+            log.info("%s recovered", k)
+            self._event("recovered", kind=k)
+        if gone:
+            self._redraw()
+
+    # ------------------------------------------------------------------ lifecycle
+    def boot(self) -> None:
+        """Show the active content plainly and wait for the button."""
+        self._set_state(State.BOOT)
+        self._show_plain("boot")
+        self._set_state(State.IDLE)
+
+    # ------------------------------------------------------------------ inputs
+    def on_imu(self, sample: ImuSample) -> None:
+        self._clear("imu")
+        change = self.motion.update(sample)
+        if change is True:
+            self._motion_ns = sample.receive_ns
+            self._event("moving")
+        elif change is False:
+            self._event("settled")
+            self.filter.reset()
+            self._refine_pending = True
+
+    def on_imu_error(self, message: str) -> None:
+        self.motion.reset_window()
+        self._fault("imu", message)
+
+    def on_depth_error(self, message: str) -> None:
+        self._fault("camera", message)
+
+    def on_button(self, ev: ButtonEvent) -> None:
+        if ev.pressed:
+            self._press_ns = ev.receive_ns
+            return
+        if self._press_ns is None:
+            return
+        held = ev.receive_ns - self._press_ns
+        press = self._press_ns
+        self._press_ns = None
+        if held >= self.settings.long_press_s * 1e9:
+            self._single_ns = None
+            self._gesture("long")
+        elif (
+            self._single_ns is not None
+            and press - self._single_ns <= self.settings.double_press_s * 1e9
+        ):
+            self._single_ns = None
+            self._gesture("double")
+        else:
+            self._single_ns = ev.receive_ns
+
+    def tick(self) -> None:
+        """Time-driven work: gestures that have waited out, capture and depth timeouts,
+        content that came over the link."""
+        now = self._now()
+        self._take_pending()
+        if (
+            self._single_ns is not None
+            and now - self._single_ns > self.settings.double_press_s * 1e9
+        ):
+            self._single_ns = None
+            self._gesture("press")
+        if (
+            self.state == State.CAPTURING
+            and self._captured > 0
+            and now - self._capture_ns > self.settings.capture_timeout_s * 1e9
+        ):
+            self._finish_capture()
+        if (
+            self.state in (State.CAPTURING, State.PROJECTING)
+            and self._last_depth_ns is not None
+            and now - self._last_depth_ns > self.settings.depth_timeout_s * 1e9
+            and "camera" not in self.faults
+        ):
+            self._fault("camera", f"no depth frame for {self.settings.depth_timeout_s:g} s")
+
+    def on_depth(self, frame: DepthFrame) -> None:
+        t_start = time.perf_counter()
+        now = self._now()
+        self._last_depth_ns = now
+        self._clear("camera")
+        if self.state not in (State.CAPTURING, State.PROJECTING):
+            return
+        s = self.settings
+        if self.state == State.PROJECTING and self._last_estimate_ns is not None:
+            interval = s.moving_interval_s if self.motion.moving else s.still_interval_s
+            if now - self._last_estimate_ns < interval * 1e9 - 1e6:
+                self.counters["skipped_frames"] += 1
+                return
+        self._last_estimate_ns = now
+        with self.pipeline.timer("surface"):
+            try:
+                est = estimate_surface(frame.metres(), self.calibration, s.grid_shape(), s.depth)
+            except AdaprojError as e:
+                self._fault("depth", f"depth frame unusable: {e}")
+                return
+        self.counters["estimates"] += 1
+        if est.coverage < s.min_coverage:
+            self._depth_problem(frame, est.coverage)
+            return
+        self._clear("depth", "range")
+        moving = self.motion.moving
+        if self.state == State.CAPTURING:
+            self.filter.update(est, still=self._captured > 0 and not moving)
+            self._captured += 1
+            if self._captured >= s.capture_frames:
+                self._finish_capture(t_start)
+            return
+        if moving:
+            cur = self.filter.update(est, still=False)
+            self._update(cur.surface, refine=False, reason="moving", t_start=t_start)
+            self._refine_pending = True
+            return
+        cur = self.filter.update(est, still=True)
+        if self._refine_pending or self._changed(cur.surface):
+            self._update(cur.surface, refine=True, reason="settled", t_start=t_start)
+            self._refine_pending = False
+
+    def _depth_problem(self, frame: DepthFrame, coverage: float) -> None:
+        d = frame.depth_mm
+        seen = float(np.mean(d > 0))
+        lo, hi = self.settings.depth.min_depth_m * 1e3, self.settings.depth.max_depth_m * 1e3
+        in_range = float(np.mean((d >= lo) & (d <= hi)))
+        if seen > 0.3 and in_range < 0.5 * seen:
+            self._fault("range", f"surface out of range ({lo / 1e3:g}-{hi / 1e3:g} m)")
+        else:
+            self._fault(
+                "depth", f"depth dropout: surface seen on {100 * coverage:.0f} % of the frame"
+            )
+
+    def _changed(self, surface: Surface) -> bool:
+        if self._shown_depth is None:
+            return True
+        z = surface.points[..., 2].astype(np.float64)
+        both = np.isfinite(z) & np.isfinite(self._shown_depth)
+        if both.sum() < 0.9 * np.isfinite(z).sum():
+            return True
+        rel = np.abs(z[both] - self._shown_depth[both]) / self._shown_depth[both]
+        return bool(np.median(rel) > self.settings.hysteresis_rel)
+
+    # ------------------------------------------------------------------ gestures
+    def _gesture(self, kind: str) -> None:
+        self._event("gesture", kind=kind)
+        if kind == "press":
+            self._start_capture()
+        elif kind == "double":
+            self.current = (self.current + 1) % len(self.items)
+            self._event("content", item=self.item.name)
+            self._reshow("next item")
+        elif kind == "long":
+            self.plain = not self.plain
+            self._event("mode", plain=self.plain)
+            self._reshow("mode")
+
+    def _start_capture(self) -> None:
+        self.filter.reset()
+        self._captured = 0
+        self._capture_ns = self._now()
+        self._set_state(State.CAPTURING)
+
+    def _finish_capture(self, t_start: float | None = None) -> None:
+        cur = self.filter.current
+        if cur is None:
+            return
+        self._set_state(State.PROJECTING)
+        self._refine_pending = self.motion.moving
+        self._update(cur.surface, refine=True, reason="capture", t_start=t_start)
+
+    def _reshow(self, reason: str) -> None:
+        if self.state == State.PROJECTING and self.surface is not None:
+            self._update(self.surface, refine=True, reason=reason)
+        else:
+            self._show_plain(reason)
+
+    # ------------------------------------------------------------------ warps
+    def _warp_settings(self) -> WarpSettings:
+        st = self.item.settings
+        return WarpSettings(mode="content", grid=self.settings.grid, threshold=st.threshold)
+
+    def _update(
+        self, surface: Surface, refine: bool, reason: str, t_start: float | None = None
+    ) -> None:
+        t0 = t_start if t_start is not None else time.perf_counter()
+        item = self.item
+        if self.plain or item.settings.mode == "standard":
+            self.surface = surface
+            self._show_plain(reason)
+            return
+        settings = self._warp_settings()
+        depth = surface.points[..., 2].astype(np.float64)
+        key = (
+            pose_key(
+                self.motion.orientation_vector(),
+                depth,
+                self.settings.orientation_bin_rad,
+                self.settings.depth_bin_m,
+            )
+            + item.size
+        )
+        try:
+            with self.pipeline.timer("cache_lookup"):
+                cf = self.pose_cache.get(key, depth) if self.settings.caching else None
+            hit = cf is not None
+            if cf is not None:
+                self.counters["cache_hits"] += 1
+                self.pipeline.times.add("cache_hit", time.perf_counter() - t0)
+            else:
+                self.counters["cache_misses"] += 1
+                cf = self.pipeline.content_free(surface, item.size, settings)
+                self.counters["content_free"] += 1
+                self.pose_cache.put(key, cf)
+            self.counters["cache_rejected"] = self.pose_cache.rejected
+            warp, maps, kind, its = cf.warp, cf.maps, "content-free", 0
+            map_xy: NDArray[np.float32] | None = None
+            if refine and item.content_map is not None and item.settings.mode == "content":
+                warp, map_xy, maps = self.pipeline.content_aware(
+                    surface, item.content_map, settings, cf
+                )
+                kind, its = "content-aware", int(warp.meta["iterations"])
+                self.counters["content_aware"] += 1
+        except AdaprojError as e:
+            self._fault("warp", f"no warp for this surface: {e}")
+            return
+        self._clear("warp")
+        self.surface = surface
+        self._cf = cf
+        self._shown_depth = depth
+        self.shown_warp, self.shown_map, self._maps = warp, map_xy, maps
+        self._render(reason, kind)
+        elapsed = time.perf_counter() - t0
+        self.pipeline.times.add("update_" + kind, elapsed)
+        if self._motion_ns is not None:
+            self.latencies_ms.append((self._now() - self._motion_ns) / 1e6 + elapsed * 1e3)
+            self._motion_ns = None
+        self.updates.append(
+            {
+                "t_ns": self._now(),
+                "reason": reason,
+                "kind": kind,
+                "cache_hit": hit,
+                "iterations": its,
+                "probes": _probes(warp),
+            }
+        )
+
+    def _show_plain(self, reason: str) -> None:
+        warp, maps = self.pipeline.plain(self.item.size)
+        self.shown_warp, self._maps, self.shown_map = warp, maps, None
+        self._shown_depth = None
+        self._render(reason, "plain")
+
+    # ------------------------------------------------------------------ display
+    def _render(self, reason: str, kind: str) -> None:
+        if self._maps is None:
+            return
+        with self.pipeline.timer("render"):
+            frame = render_frame(self.item.image, self._maps)
+            if frame.ndim == 2:
+                frame = np.asarray(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR), np.uint8)
+            self._good = frame
+            self._show(frame, {"reason": reason, "kind": kind})
+
+    def _redraw(self) -> None:
+        good = self._good
+        if good is not None:
+            self._show(good, {"reason": "status", "kind": "status"})
+
+    def _show(self, frame: Image, info: dict[str, Any]) -> None:
+        out = draw_status(frame, sorted(self.faults))
+        self.display.show(out)
+        self.frame = out
+        self.counters["frames_shown"] += 1
+        if self.on_frame is not None:
+            self.on_frame(self._now(), out, {**info, "faults": sorted(self.faults)})
+
+    # ------------------------------------------------------------------ link side
+    def activate(self, content: Content) -> None:
+        """Called from the link's thread: read and check the content, queue it."""
+        try:
+            image = read_image(content.image)
+            mask = None
+            if content.mask is not None:
+                m = read_image(content.mask, gray=True)
+                if m.shape[:2] != image.shape[:2]:
+                    raise ImageError(
+                        f"mask {content.mask.name} is {m.shape[1]}x{m.shape[0]}, "
+                        f"image {content.image.name} is {image.shape[1]}x{image.shape[0]}"
+                    )
+                mask = (m.astype(np.float32) / 255.0).astype(np.float32)
+            cmap = self.content_map_fn(image, mask, content.settings.threshold)
+        except AdaprojError as e:
+            self.errors = [*self.errors, str(e)][-10:]
+            raise
+        item = Item(content.image.name, image, cmap, content.settings)
+        with self._lock:
+            self._pending.append(item)
+
+    def _take_pending(self) -> None:
+        with self._lock:
+            pending, self._pending = self._pending, []
+        for item in pending:
+            names = [i.name for i in self.items]
+            if item.name in names:
+                self.items[names.index(item.name)] = item
+                self.current = names.index(item.name)
+            else:
+                self.items.append(item)
+                self.current = len(self.items) - 1
+            self._event("content", item=item.name, source="link")
+            self._reshow("new content")
+
+    def status(self) -> dict[str, Any]:
+        w = self.shown_warp
+        return {
+            "state": self.state.value,
+            "image": self.item.name,
+            "plain": self.plain,
+            "settings": self.item.settings.to_dict(),
+            "frame": [self.calibration.projector.width, self.calibration.projector.height],
+            "coverage": None if self.surface is None else round(self.surface.valid_fraction, 4),
+            "warp": None
+            if w is None
+            else {"mode": w.meta.get("mode"), "iterations": w.meta.get("iterations", 0)},
+            "faults": dict(self.faults),
+            "errors": self.errors[-5:],
+            "counters": dict(self.counters),
+        }
+
+    def frame_png(self) -> bytes:
+        ok, enc = cv2.imencode(".png", self.frame)
+        if not ok:
+            raise ImageError("cannot encode the current frame as PNG")
+        return bytes(enc.tobytes())
+
+
+def draw_status(frame: Image, faults: list[str]) -> Image:
+    """``frame`` with a small square per fault in the top-right corner (none: as is)."""
+    if not faults:
+        return frame
+    out = frame.copy()
+    w = out.shape[1]
+    for i, kind in enumerate(faults):
+        x1 = w - 8 - i * 20
+        colour = MARK_COLOURS.get(kind, (0, 255, 255))
+        cv2.rectangle(out, (x1 - 12, 8), (x1, 20), colour, thickness=-1)
+    return out
+
+
+def _probes(warp: Warp) -> list[list[float] | None]:
+    """``image_xy`` at five vertices (corners and centre), rounded; None where unknown."""
+    r, c = warp.image_xy.shape[:2]
+    out: list[list[float] | None] = []
+    for i, j in ((0, 0), (0, c - 1), (r // 2, c // 2), (r - 1, 0), (r - 1, c - 1)):
+        v = warp.image_xy[i, j]
+        out.append(
+            None if not np.isfinite(v).all() else [round(float(v[0]), 2), round(float(v[1]), 2)]
+        )
+    return out
