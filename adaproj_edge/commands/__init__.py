@@ -35,3 +35,6 @@ REGISTRY.append(simulate_session.register)
 from adaproj_edge.commands import demo, simulate, surface, warp  # noqa: E402
 
 REGISTRY.extend([demo.register, warp.register, simulate.register, surface.register])
+from adaproj_edge.commands import replay, run  # noqa: E402
+
+REGISTRY.extend([run.register, replay.register])

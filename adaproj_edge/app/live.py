@@ -1,0 +1,148 @@
+"""The runtime on the board: one reader thread per device feeding one queue, the
+runtime on the main thread, the SMP server on a thread of its own.
+
+A device that fails is reported to the runtime (status mark) and opened again every
+``retry_s``; the projector keeps the last good frame meanwhile.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from adaproj_edge.app.replay import builtin_item
+from adaproj_edge.app.runtime import AppSettings, Runtime
+from adaproj_edge.errors import AdaprojError, DeviceError
+from adaproj_edge.hal.board import Board
+from adaproj_edge.hal.button import ButtonEvent, EvdevButton
+from adaproj_edge.hal.clock import Clock, MonotonicClock
+from adaproj_edge.hal.depth import DepthFrame, OakDepthCamera
+from adaproj_edge.hal.display import FramebufferDisplay
+from adaproj_edge.hal.imu import ImuSample
+from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
+from adaproj_edge.hal.serial import PySerialPort
+from adaproj_edge.link.server import Server, serve
+from adaproj_edge.link.store import ContentStore
+
+log = logging.getLogger(__name__)
+
+Reader = Callable[[], Any]
+
+
+@dataclass
+class _Source:
+    """A device read in its own thread: ``open`` (re)creates the reader."""
+
+    name: str
+    open: Callable[[], Reader]
+
+
+def _pump(
+    src: _Source,
+    out: queue.Queue[tuple[str, Any]],
+    stop: threading.Event,
+    clock: Clock,
+    retry_s: float,
+) -> None:
+    read: Reader | None = None
+    while not stop.is_set():
+        try:
+            if read is None:
+                read = src.open()
+                log.info("%s open", src.name)
+            item = read()
+            if item is not None:
+                out.put((src.name, item))
+        except AdaprojError as e:
+            out.put((src.name + "-error", str(e)))
+            read = None
+            clock.sleep_until(clock.now_ns() + int(retry_s * 1e9))
+
+
+def dispatch(runtime: Runtime, kind: str, item: Any) -> None:
+    """Hand one queued input to the runtime."""
+    if kind == "depth" and isinstance(item, DepthFrame):
+        runtime.on_depth(item)
+    elif kind == "imu" and isinstance(item, ImuSample):
+        runtime.on_imu(item)
+    elif kind == "button" and isinstance(item, ButtonEvent):
+        runtime.on_button(item)
+    elif kind == "depth-error":
+        runtime.on_depth_error(str(item))
+    elif kind == "imu-error":
+        runtime.on_imu_error(str(item))
+    elif kind == "button-error":
+        log.error("button: %s", item)
+
+
+def run_device(
+    board: Board, store_dir: Path, settings: AppSettings | None = None, retry_s: float = 1.0
+) -> None:
+    """Run the projector until interrupted (Ctrl-C / SIGTERM as KeyboardInterrupt)."""
+    clock = MonotonicClock()
+    calibration = board.calibration()
+    display = FramebufferDisplay(board.display_device)
+    runtime = Runtime(calibration, display, clock, [builtin_item()], settings)
+
+    def open_imu() -> Reader:
+        bus = open_i2c(board.imu.bus)
+        imu = Lsm6dsox(bus, clock, board.imu.address, board.imu.config, f"/dev/i2c-{board.imu.bus}")
+        imu.start()
+
+        def read() -> ImuSample | None:
+            s = imu.read()
+            if s is None:
+                clock.sleep_until(clock.now_ns() + int(0.5e9 / board.imu.config.rate_hz))
+            return s
+
+        return read
+
+    def open_depth() -> Reader:
+        return OakDepthCamera(board.depth, clock).read
+
+    def open_button() -> Reader:
+        button = EvdevButton(board.button_device, board.key_code, clock)
+        return lambda: button.read(0.1)
+
+    inputs: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=256)
+    stop = threading.Event()
+    threads = [
+        threading.Thread(
+            target=_pump, args=(src, inputs, stop, clock, retry_s), daemon=True, name=src.name
+        )
+        for src in (
+            _Source("imu", open_imu),
+            _Source("depth", open_depth),
+            _Source("button", open_button),
+        )
+    ]
+    server = Server(ContentStore(store_dir), runtime)
+    server.on_reset = server.restore_active
+    try:
+        port = PySerialPort(board.serial_device)
+        threads.append(
+            threading.Thread(target=serve, args=(port, server, stop), daemon=True, name="link")
+        )
+    except DeviceError as e:
+        log.error("no serial link (%s); running without content updates", e)
+    runtime.boot()
+    server.restore_active()
+    for t in threads:
+        t.start()
+    try:
+        while True:
+            try:
+                kind, item = inputs.get(timeout=0.02)
+            except queue.Empty:
+                runtime.tick()
+                continue
+            runtime.tick()
+            dispatch(runtime, kind, item)
+    finally:
+        stop.set()
+        display.close()

@@ -1,0 +1,38 @@
+"""``adaproj run``: the projector's runtime on the board."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+from typing import Any
+
+from adaproj_edge.app.live import run_device
+from adaproj_edge.hal.board import Board
+
+log = logging.getLogger(__name__)
+
+
+def register(sub: argparse._SubParsersAction[Any]) -> None:
+    p = sub.add_parser(
+        "run",
+        help="run the projector (button, sensors, warp, serial link) on the board",
+        description="Boot, show the active content, and wait for the button: press to "
+        "capture the surface and project, double press for the next content item, long "
+        "press to toggle content-aware / plain projection. Content and settings arrive "
+        "over the USB serial link.",
+    )
+    p.add_argument("--board", default="rpi5-oakd", help="board name or board TOML file")
+    p.add_argument(
+        "--store", type=Path, default=Path("/var/lib/adaproj/content"), help="content store"
+    )
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    board = Board.load(args.board)
+    try:
+        run_device(board, args.store)
+    except KeyboardInterrupt:
+        log.info("stopped")
+    return 0
