@@ -117,28 +117,31 @@ class _TrianglePlanes:
         self.unfolding = unfold_creases(surface, warp.grid_uv.reshape(-1, 2)[tris], tris, P)
         corners = self.unfolding.points
         V = warp.image_xy.reshape(-1, 2)
-        self.origin = corners[:, 0]
-        self.e1 = corners[:, 1] - self.origin
-        self.e2 = corners[:, 2] - self.origin
+        origin = corners[:, 0]
+        e1 = corners[:, 1] - origin
+        e2 = corners[:, 2] - origin
         with np.errstate(invalid="ignore", divide="ignore"):
-            g11 = np.sum(self.e1 * self.e1, axis=1)
-            g12 = np.sum(self.e1 * self.e2, axis=1)
-            g22 = np.sum(self.e2 * self.e2, axis=1)
+            g11 = np.sum(e1 * e1, axis=1)[:, None]
+            g12 = np.sum(e1 * e2, axis=1)[:, None]
+            g22 = np.sum(e2 * e2, axis=1)[:, None]
             det = g11 * g22 - g12 * g12
-            self.ginv = np.stack([g22 / det, -g12 / det, g11 / det], axis=1)
-        self.v0 = V[tris[:, 0]]
-        self.d1 = V[tris[:, 1]] - self.v0
-        self.d2 = V[tris[:, 2]] - self.v0
+            # barycentric (u, v) of X's projection: [u v] = G^-1 [e1 e2]^T (X - origin)
+            bary = np.stack([g22 * e1 - g12 * e2, g11 * e2 - g12 * e1], axis=1) / det[:, :, None]
+        v0 = V[tris[:, 0]]
+        d = np.stack([V[tris[:, 1]] - v0, V[tris[:, 2]] - v0], axis=2)  # (T, 2, 2)
+        # content = A X + b, one affine map per triangle
+        self.A = np.einsum("tij,tjk->tik", d, bary)  # (T, 2, 3)
+        self.b = v0 - np.einsum("tik,tk->ti", self.A, origin)
 
     def to_content(self, t: IntArray, X: FloatArray) -> FloatArray:
         """Content coordinates of surface points ``X`` (..., 3) in triangles ``t`` (...):
         unfolded when the triangle has a crease, then projected orthogonally onto the
         triangle's plane and carried by its affine map."""
-        r = self.unfolding.unfold_points(t, X) - self.origin[t]
-        r1 = np.sum(r * self.e1[t], axis=-1)
-        r2 = np.sum(r * self.e2[t], axis=-1)
-        g = self.ginv[t]
-        u = g[..., 0] * r1 + g[..., 1] * r2
-        v = g[..., 1] * r1 + g[..., 2] * r2
-        out: FloatArray = self.v0[t] + u[..., None] * self.d1[t] + v[..., None] * self.d2[t]
+        Xu = self.unfolding.unfold_points(t, X)
+        out = np.empty((*t.shape, 2))
+        for i in range(2):
+            a = self.A[:, i, :][t]  # (..., 3)
+            out[..., i] = (
+                a[..., 0] * Xu[..., 0] + a[..., 1] * Xu[..., 1] + a[..., 2] * Xu[..., 2]
+            ) + self.b[t, i]
         return out
