@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from adaproj_edge.errors import ImageError
+from adaproj_edge.errors import ImageError, InputError
 
 MAX_IMAGE_PIXELS = 40_000_000
 
@@ -96,18 +96,24 @@ def decode_image(data: bytes, what: str, *, gray: bool = False) -> NDArray[np.ui
     return np.asarray(img, dtype=np.uint8)
 
 
-def read_image(path: str | os.PathLike[str], *, gray: bool = False) -> NDArray[np.uint8]:
-    """Read an image file with a clear error for every way it can fail."""
+def read_input(
+    path: str | os.PathLike[str], what: str, error: type[InputError] = InputError
+) -> bytes:
+    """The bytes of ``path``; ``error`` naming ``what`` if it cannot be read."""
     path = Path(path)
     try:
-        data = path.read_bytes()
+        return path.read_bytes()
     except FileNotFoundError:
-        raise ImageError(f"image not found: {path}") from None
+        raise error(f"{what} not found: {path}") from None
     except IsADirectoryError:
-        raise ImageError(f"{path} is a directory, not an image") from None
+        raise error(f"{what} {path} is a directory") from None
     except OSError as e:
-        raise ImageError(f"cannot read {path}: {e.strerror}") from None
-    return decode_image(data, str(path), gray=gray)
+        raise error(f"cannot read {what} {path}: {e.strerror}") from None
+
+
+def read_image(path: str | os.PathLike[str], *, gray: bool = False) -> NDArray[np.uint8]:
+    """Read an image file with a clear error for every way it can fail."""
+    return decode_image(read_input(path, "image", ImageError), str(path), gray=gray)
 
 
 def image_size(data: bytes) -> tuple[int, int] | None:

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from adaproj_edge.errors import InputError
-from adaproj_edge.geometry.files import read_input
+from adaproj_edge.fileio import read_input
 from adaproj_edge.geometry.projector import FloatArray, Projector
 
 FORMAT = "adaproj-calibration/1"

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.errors import InputError
-from adaproj_edge.geometry.files import read_input
+from adaproj_edge.fileio import read_input
 from adaproj_edge.geometry.projector import FloatArray
 
 MAX_TRIANGLES = 2_000_000
