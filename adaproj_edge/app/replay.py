@@ -257,6 +257,13 @@ def _rel(t_ns: int, t0: int) -> float:
     return round((t_ns - t0) / 1e9, 4)
 
 
+def _timed(items: list[dict[str, Any]], t0: int) -> list[dict[str, Any]]:
+    """``items`` with ``t_ns`` replaced by ``t_s``, seconds from the session start."""
+    return [
+        {"t_s": _rel(x["t_ns"], t0), **{k: v for k, v in x.items() if k != "t_ns"}} for x in items
+    ]
+
+
 def _summary(
     path: Path,
     rt: Runtime,
@@ -271,12 +278,10 @@ def _summary(
         "session": path.name,
         "duration_s": _rel(rt.clock.now_ns(), t0),
         "states": [[_rel(t, t0), s] for t, s in rt.states],
-        "events": [{**e, "t_s": _rel(e.pop("t_ns"), t0)} for e in [dict(x) for x in rt.events]],
+        "events": _timed(rt.events, t0),
         "counters": dict(rt.counters),
-        "updates": [{**u, "t_s": _rel(u.pop("t_ns"), t0)} for u in [dict(x) for x in rt.updates]],
-        "frames": [
-            {**f, "t_s": _rel(f.pop("t_ns"), t0)} for f in [dict(x) for x in frames.checksums]
-        ],
+        "updates": _timed(rt.updates, t0),
+        "frames": _timed(frames.checksums, t0),
         "injected_faults": [f.__dict__ for f in faults],
         "timings_ms": rt.pipeline.times.summary(),
         "motion_to_frame_ms": {
@@ -284,9 +289,7 @@ def _summary(
             "median": round(float(np.median(lat)), 2) if lat.size else None,
             "p95": round(float(np.percentile(lat, 95)), 2) if lat.size else None,
         },
-        "distortion": []
-        if scorer is None
-        else [{**d, "t_s": _rel(d.pop("t_ns"), t0)} for d in scorer.scores],
+        "distortion": [] if scorer is None else _timed(scorer.scores, t0),
         "rss_mb": rss,
     }
 
