@@ -1,18 +1,22 @@
 """Warp mesh -> per-pixel map: the content coordinate each projector pixel shows.
 
-Two ways to fill the inside of a grid triangle:
+Every pixel lies in one grid triangle and shows ``V0 + u (V1 - V0) + v (V2 - V0)`` of
+that triangle's content-space corners. The weights (u, v) depend only on the surface
+and the grid, never on where the corners go in content space, so they are computed
+once per pose (:class:`PixelWeights`) and any later warp of the same pose — a
+content-aware refinement, new content — maps by a gather (:meth:`PixelWeights.map`).
 
-* ``surface`` given (the dense point map): the pixel's own surface point X is projected
-  orthogonally onto the plane of its 3D triangle and carried to content space by the
-  triangle's affine map. On a plane this is exact; on a curved developable surface the
-  error is second order in the cell's curvature (it does not grow with the viewing
-  angle, unlike any interpolation along the ray). Where X lies far from its own
-  triangle's plane - a crease, such as a wall corner, running through the cell - the
-  plane of a neighbouring triangle that X lies on is used instead, so each side of the
-  crease gets its own wall's exact map.
-* no surface: perspective-correct interpolation with the vertex depths,
-  ``(l_k / z_k) / sum_j (l_j / z_j)`` for pixel-space barycentrics ``l_k`` - exact
-  over the 3D triangle the rays span.
+How (u, v) are found:
+
+* with the dense surface: the pixel's own surface point X is projected orthogonally
+  onto the plane of its 3D triangle. On a plane this is exact; on a curved developable
+  surface the error is second order in the cell's curvature (it does not grow with the
+  viewing angle, unlike any interpolation along the ray). In a triangle that a crease
+  (a wall corner) runs through, X is first unfolded like the triangle itself
+  (:mod:`adaproj_edge.geometry.creases`), so each side of the crease is exact too.
+* where X is unknown (or without a surface): perspective-correct interpolation with
+  the vertex depths, ``(l_k / z_k) / sum_j (l_j / z_j)`` for pixel-space barycentrics
+  ``l_k`` — exact over the 3D triangle the rays span.
 
 Plain piecewise-linear interpolation in pixel space leaves a projective error of a few
 percent per cell even on a tilted plane.
@@ -20,11 +24,13 @@ percent per cell even on a tilted plane.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.geometry.creases import unfold_creases
-from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.geometry.projector import FloatArray, Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import grid_triangles
 from adaproj_edge.warp.mesh import Warp
@@ -40,108 +46,119 @@ def _cells(positions: FloatArray, n_pixels: int) -> tuple[IntArray, FloatArray]:
     return c, f
 
 
-class _PixelCells:
-    """Which cell and which of its two triangles each pixel lies in."""
+@dataclass(frozen=True)
+class PixelWeights:
+    """For every projector pixel: its grid triangle and weights (u, v) on its corners.
 
-    def __init__(self, warp: Warp) -> None:
-        proj = warp.projector
-        self.rows, self.cols = warp.grid_uv.shape[:2]
-        cx, fx = _cells(warp.grid_uv[0, :, 0], proj.width)
-        cy, fy = _cells(warp.grid_uv[:, 0, 1], proj.height)
-        self.cx, self.cy = np.meshgrid(cx, cy)
-        self.fx, self.fy = np.meshgrid(fx, fy)
-        self.upper = self.fx >= self.fy  # triangle (a, b, e), else (a, e, d)
-        # triangle index as numbered by grid_triangles: 2 * cell + (0 upper, 1 lower)
-        self.tri = 2 * (self.cy * (self.cols - 1) + self.cx) + (~self.upper).astype(np.intp)
+    Attributes
+    ----------
+    corners : (3, H, W) int32 grid vertex indices of the corners of each pixel's
+        triangle (``grid_triangles`` order).
+    u, v : (H, W) float32 weights of the triangle's corners 1 and 2; NaN where the
+        pixel's triangle has a corner without surface (it shows black).
+    """
+
+    corners: NDArray[np.int32]
+    u: NDArray[np.float32]
+    v: NDArray[np.float32]
+
+    @classmethod
+    def build(
+        cls,
+        grid_uv: FloatArray,
+        depth: FloatArray | None,
+        projector: Projector,
+        surface: Surface | None = None,
+    ) -> PixelWeights:
+        """Weights for the grid ``grid_uv`` (R, C, 2) with vertex depths ``depth`` (R, C)
+        (NaN where no surface; None: plain pixel-space interpolation)."""
+        rows, cols = grid_uv.shape[:2]
+        corners = grid_triangles(rows - 1, cols - 1)
+        cx, fx = _cells(grid_uv[0, :, 0], projector.width)
+        cy, fy = _cells(grid_uv[:, 0, 1], projector.height)
+        cxx, cyy = np.meshgrid(cx, cy)
+        fxx, fyy = np.meshgrid(fx, fy)
+        upper = fxx >= fyy  # triangle (a, b, e), else (a, e, d)
+        tri = 2 * (cyy * (cols - 1) + cxx) + (~upper).astype(np.intp)
+        # perspective-correct weights of the triangle's corners (a, b|e, e|d)
+        l1 = np.where(upper, fxx - fyy, fxx)
+        l2 = np.where(upper, fyy, fyy - fxx)
+        l0 = 1.0 - l1 - l2
+        if depth is None:
+            inv_z = np.ones(rows * cols)
+        else:
+            inv_z = 1.0 / depth.reshape(-1)  # NaN without surface: the pixel shows black
+        w0 = l0 * inv_z[corners[tri, 0]]
+        w1 = l1 * inv_z[corners[tri, 1]]
+        w2 = l2 * inv_z[corners[tri, 2]]
+        total = w0 + w1 + w2
+        u, v = w1 / total, w2 / total
+        if surface is not None and depth is not None:
+            uo, vo = _surface_weights(grid_uv, depth, projector, corners, tri, surface)
+            use = np.isfinite(uo) & np.isfinite(u)
+            u = np.where(use, uo, u)
+            v = np.where(use, vo, v)
+        pixel_corners = np.moveaxis(corners[tri], -1, 0).astype(np.int32)
+        return cls(pixel_corners, u.astype(np.float32), v.astype(np.float32))
+
+    def map(self, image_xy: FloatArray, content_size: tuple[int, int]) -> NDArray[np.float32]:
+        """The (H, W, 2) float32 map for vertex content coordinates ``image_xy`` (R, C, 2);
+        NaN where the pixel shows black (no surface, or outside the content)."""
+        verts = np.asarray(image_xy, dtype=np.float32).reshape(-1, 2)
+        c0, c1, c2 = self.corners
+        out = np.empty((*self.u.shape, 2), dtype=np.float32)
+        for k in range(2):
+            vk = verts[:, k]
+            p0 = vk[c0]
+            out[..., k] = p0 + self.u * (vk[c1] - p0) + self.v * (vk[c2] - p0)
+        w, h = content_size
+        with np.errstate(invalid="ignore"):
+            outside = (
+                ~np.isfinite(out).all(axis=2)
+                | (out[..., 0] < -0.5)
+                | (out[..., 0] > w - 0.5)
+                | (out[..., 1] < -0.5)
+                | (out[..., 1] > h - 0.5)
+            )
+        out[outside] = np.nan
+        return out
+
+
+def _surface_weights(
+    grid_uv: FloatArray,
+    depth: FloatArray,
+    projector: Projector,
+    corners: IntArray,
+    tri: IntArray,
+    surface: Surface,
+) -> tuple[FloatArray, FloatArray]:
+    """(u, v) of each pixel's own surface point, unfolded, projected on its triangle."""
+    P = (projector.rays(grid_uv) * depth[..., None]).reshape(-1, 3)
+    unfolding = unfold_creases(surface, grid_uv.reshape(-1, 2)[corners], corners, P)
+    pts = unfolding.points
+    origin = pts[:, 0]
+    e1 = pts[:, 1] - origin
+    e2 = pts[:, 2] - origin
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g11 = np.sum(e1 * e1, axis=1)[:, None]
+        g12 = np.sum(e1 * e2, axis=1)[:, None]
+        g22 = np.sum(e2 * e2, axis=1)[:, None]
+        det = g11 * g22 - g12 * g12
+        # [u v] = G^-1 [e1 e2]^T (X - origin): one 2x3 matrix per triangle
+        bary = np.stack([g22 * e1 - g12 * e2, g11 * e2 - g12 * e1], axis=1) / det[:, :, None]
+    offset = np.einsum("tij,tj->ti", bary, origin)
+    X = unfolding.unfold_points(tri, surface.dense().points.astype(np.float64))
+    out = []
+    for i in range(2):
+        m = bary[:, i, :][tri]
+        out.append(
+            m[..., 0] * X[..., 0] + m[..., 1] * X[..., 1] + m[..., 2] * X[..., 2] - offset[tri, i]
+        )
+    return out[0], out[1]
 
 
 def map_from_warp(warp: Warp, surface: Surface | None = None) -> NDArray[np.float32]:
     """The (H, W, 2) float32 map of content coordinates; NaN where the pixel shows black
     (no surface under its triangle, or outside the content)."""
-    cells = _PixelCells(warp)
-    out = _perspective(warp, cells)
-    if surface is not None:
-        X = surface.dense().points.astype(np.float64)
-        ortho = _TrianglePlanes(warp, surface).to_content(cells.tri, X)
-        use = np.isfinite(ortho).all(axis=2) & np.isfinite(out).all(axis=2)
-        out[use] = ortho[use]
-    w, h = warp.content_size
-    outside = (
-        ~np.isfinite(out).all(axis=2)
-        | (out[..., 0] < -0.5)
-        | (out[..., 0] > w - 0.5)
-        | (out[..., 1] < -0.5)
-        | (out[..., 1] > h - 0.5)
-    )
-    out[outside] = np.nan
-    return out.astype(np.float32)
-
-
-def _perspective(warp: Warp, cells: _PixelCells) -> FloatArray:
-    cols = cells.cols
-    a = cells.cy * cols + cells.cx
-    b, d = a + 1, a + cols
-    e = d + 1
-    up, fx, fy = cells.upper, cells.fx, cells.fy
-    la = np.where(up, 1.0 - fx, 1.0 - fy)
-    lb = np.where(up, fx - fy, 0.0)
-    ld = np.where(up, 0.0, fy - fx)
-    le = np.where(up, fy, fx)
-    if warp.depth is not None:
-        # a vertex without surface gets weight 0, not NaN: it may be the one vertex of
-        # the cell that is not in the pixel's triangle
-        inv_z = np.nan_to_num(1.0 / warp.depth.reshape(-1), nan=0.0)
-    else:
-        inv_z = np.ones(cells.rows * cols)
-    wa, wb, wd, we = la * inv_z[a], lb * inv_z[b], ld * inv_z[d], le * inv_z[e]
-    total = wa + wb + wd + we
-    v = warp.image_xy.reshape(-1, 2)
-    out = np.empty((*a.shape, 2))
-    for k in range(2):
-        vk = v[:, k]
-        # a zero weight must not let a NaN vertex of the other triangle through
-        acc = wa * vk[a] + np.where(lb > 0, wb * vk[b], 0.0) + np.where(ld > 0, wd * vk[d], 0.0)
-        out[..., k] = (acc + we * vk[e]) / total
-    return out
-
-
-class _TrianglePlanes:
-    """Per grid triangle: its (unfolded) plane and the affine map from it to content."""
-
-    def __init__(self, warp: Warp, surface: Surface) -> None:
-        rows, cols = warp.grid_uv.shape[:2]
-        tris = grid_triangles(rows - 1, cols - 1)
-        if warp.depth is None:
-            raise ValueError("a surface map needs the warp's vertex depths")
-        P = (warp.projector.rays(warp.grid_uv) * warp.depth[..., None]).reshape(-1, 3)
-        self.unfolding = unfold_creases(surface, warp.grid_uv.reshape(-1, 2)[tris], tris, P)
-        corners = self.unfolding.points
-        V = warp.image_xy.reshape(-1, 2)
-        origin = corners[:, 0]
-        e1 = corners[:, 1] - origin
-        e2 = corners[:, 2] - origin
-        with np.errstate(invalid="ignore", divide="ignore"):
-            g11 = np.sum(e1 * e1, axis=1)[:, None]
-            g12 = np.sum(e1 * e2, axis=1)[:, None]
-            g22 = np.sum(e2 * e2, axis=1)[:, None]
-            det = g11 * g22 - g12 * g12
-            # barycentric (u, v) of X's projection: [u v] = G^-1 [e1 e2]^T (X - origin)
-            bary = np.stack([g22 * e1 - g12 * e2, g11 * e2 - g12 * e1], axis=1) / det[:, :, None]
-        v0 = V[tris[:, 0]]
-        d = np.stack([V[tris[:, 1]] - v0, V[tris[:, 2]] - v0], axis=2)  # (T, 2, 2)
-        # content = A X + b, one affine map per triangle
-        self.A = np.einsum("tij,tjk->tik", d, bary)  # (T, 2, 3)
-        self.b = v0 - np.einsum("tik,tk->ti", self.A, origin)
-
-    def to_content(self, t: IntArray, X: FloatArray) -> FloatArray:
-        """Content coordinates of surface points ``X`` (..., 3) in triangles ``t`` (...):
-        unfolded when the triangle has a crease, then projected orthogonally onto the
-        triangle's plane and carried by its affine map."""
-        Xu = self.unfolding.unfold_points(t, X)
-        out = np.empty((*t.shape, 2))
-        for i in range(2):
-            a = self.A[:, i, :][t]  # (..., 3)
-            out[..., i] = (
-                a[..., 0] * Xu[..., 0] + a[..., 1] * Xu[..., 1] + a[..., 2] * Xu[..., 2]
-            ) + self.b[t, i]
-        return out
+    weights = PixelWeights.build(warp.grid_uv, warp.depth, warp.projector, surface)
+    return weights.map(warp.image_xy, warp.content_size)

@@ -1,0 +1,34 @@
+"""Per-pixel maps: weights computed once per pose serve every later warp of it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from adaproj_edge.geometry.analytic import simulate_surface
+from adaproj_edge.render.maps import PixelWeights, map_from_warp
+from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.mesh import Grid
+
+
+def test_weights_of_a_pose_map_any_warp_of_it() -> None:
+    surface = simulate_surface("sphere-convex", step=4)
+    settings = WarpSettings(mode="conformal", grid=Grid(12, 8))
+    free = compute_warp(surface, (320, 200), settings=settings)
+    weights = PixelWeights.build(free.grid_uv, free.depth, free.projector, surface)
+    cmap = np.zeros((20, 32), np.float32)
+    cmap[5:15, 4:12] = 1.0
+    aware = compute_warp(surface, (320, 200), cmap, WarpSettings(grid=Grid(12, 8)))
+    assert aware.meta["iterations"] > 0
+    for warp in (free, aware):
+        np.testing.assert_array_equal(
+            weights.map(warp.image_xy, warp.content_size), map_from_warp(warp, surface)
+        )
+
+
+def test_pixels_without_surface_under_their_triangle_show_black() -> None:
+    surface = simulate_surface("sphere-convex", step=4)
+    warp = compute_warp(surface, (320, 200), settings=WarpSettings(mode="conformal"))
+    m = map_from_warp(warp, surface)
+    assert np.isnan(m[0, 0]).all() and np.isnan(m[-1, -1]).all()
+    shown = np.isfinite(m).all(axis=2)
+    assert np.all(m[shown][:, 0] >= -0.5) and np.all(m[shown][:, 0] <= 319.5)
