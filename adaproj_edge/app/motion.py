@@ -89,7 +89,9 @@ class MotionTracker:
             np.array([s.accel for s in self._window]),
         )
         if still:
-            if self._bias_n < 2000:
+            # the bias is learnt from quiet samples only (a turn starting inside a
+            # still window must not become bias)
+            if self._bias_n < 2000 and not self.moving and np.linalg.norm(gyro) < 0.03:
                 self._bias_n += 1
                 self._bias += (gyro - self._bias) / self._bias_n
             if self._still_since is None:

@@ -453,12 +453,13 @@ class Runtime:
             + item.size
         )
         try:
-            with self.pipeline.timer("cache_lookup"):
-                cf = self.pose_cache.get(key, depth) if self.settings.caching else None
+            t_lookup = time.perf_counter()
+            cf = self.pose_cache.get(key, depth) if self.settings.caching else None
             hit = cf is not None
+            lookup = time.perf_counter() - t_lookup
+            self.pipeline.times.add("cache_hit" if hit else "cache_lookup", lookup)
             if cf is not None:
                 self.counters["cache_hits"] += 1
-                self.pipeline.times.add("cache_hit", time.perf_counter() - t0)
             else:
                 self.counters["cache_misses"] += 1
                 cf = self.pipeline.content_free(surface, item.size, settings)

@@ -1,0 +1,196 @@
+"""The runtime's parts: gestures, motion hysteresis, pose cache, faults, link content."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from adaproj_edge.app.motion import MotionTracker
+from adaproj_edge.app.posecache import CachedWarp, PoseCache, pose_key
+from adaproj_edge.app.replay import builtin_item
+from adaproj_edge.app.runtime import Item, Runtime, State, mask_content_map
+from adaproj_edge.errors import ImageError
+from adaproj_edge.geometry.calibration import Calibration
+from adaproj_edge.hal.button import ButtonEvent
+from adaproj_edge.hal.clock import VirtualClock
+from adaproj_edge.hal.depth import DepthFrame
+from adaproj_edge.hal.display import MemoryDisplay
+from adaproj_edge.hal.imu import ImuSample
+from adaproj_edge.link.device import Content, Settings
+from adaproj_edge.session.motion import HandMotion
+from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate
+
+CAL = Calibration.default()
+MS = 1_000_000
+
+
+def _runtime(items: list[Item] | None = None) -> tuple[Runtime, VirtualClock, MemoryDisplay]:
+    clock = VirtualClock(1_000 * MS)
+    display = MemoryDisplay(CAL.projector.width, CAL.projector.height)
+    rt = Runtime(CAL, display, clock, items or [builtin_item()], content_map_fn=mask_content_map)
+    rt.boot()
+    return rt, clock, display
+
+
+def _second_item() -> Item:
+    img = np.full((300, 400, 3), 200, np.uint8)
+    return Item("grey", img, mask_content_map(img, None, 0.5))
+
+
+def _press(rt: Runtime, clock: VirtualClock, t_ms: int, held_ms: int = 100) -> None:
+    for dt, pressed in ((0, True), (held_ms, False)):
+        clock.advance_to((t_ms + dt) * MS)
+        rt.tick()
+        rt.on_button(ButtonEvent(clock.now_ns(), clock.now_ns(), 28, pressed))
+
+
+def test_boot_shows_the_content_plainly_and_waits() -> None:
+    rt, _, display = _runtime()
+    assert rt.state == State.IDLE
+    assert display.count == 1 and display.last is not None and display.last.mean() > 10
+
+
+def test_gestures_double_press_long_press_and_press() -> None:
+    rt, clock, _ = _runtime([builtin_item(), _second_item()])
+    _press(rt, clock, 2000)
+    _press(rt, clock, 2200)  # second press 100 ms after the first release: double
+    clock.advance_to(3000 * MS)
+    rt.tick()
+    assert rt.item.name == "grey" and rt.state == State.IDLE
+    _press(rt, clock, 4000, held_ms=1000)  # long
+    assert rt.plain
+    _press(rt, clock, 6000)  # single: acted on once the double-press window is over
+    assert rt.state == State.IDLE
+    clock.advance_to(6500 * MS)
+    rt.tick()
+    assert rt.state == State.CAPTURING
+    kinds = [e["kind"] for e in rt.events if e["event"] == "gesture"]
+    assert kinds == ["double", "long", "press"]
+
+
+def _samples(gyro: float, t0_s: float, seconds: float) -> list[ImuSample]:
+    out = []
+    for k in range(int(seconds * 208)):
+        t = int((t0_s + k / 208) * 1e9)
+        out.append(ImuSample(t, t, (0.0, -9.81, 0.0), (gyro, 0.0, 0.0)))
+    return out
+
+
+def test_motion_starts_at_once_and_settles_with_hysteresis() -> None:
+    m = MotionTracker(CAL.R_P_I)
+    changes = [(s.sensor_ns, m.update(s)) for s in _samples(0.0, 0.0, 0.5)]
+    assert all(c is None for _, c in changes)
+    moving = [(t, c) for t, c in ((s.sensor_ns, m.update(s)) for s in _samples(0.5, 0.5, 0.3)) if c]
+    assert len(moving) == 1 and moving[0][0] < 0.6e9
+    settled = [
+        (t, c)
+        for t, c in ((s.sensor_ns, m.update(s)) for s in _samples(0.0, 0.8, 1.0))
+        if c is not None
+    ]
+    assert len(settled) == 1 and settled[0][1] is False
+    assert settled[0][0] >= 0.8e9 + 0.3e9  # not before settle_s of stillness
+    assert abs(m.orientation_vector()[0]) > 0.1  # the turn was integrated
+
+
+def test_pose_cache_is_bounded_and_checks_the_depth() -> None:
+    depth = np.full((21, 21), 1.5)
+    entry = CachedWarp(None, None, depth, None, None, None)  # type: ignore[arg-type]
+    cache = PoseCache(2)
+    for k in range(3):
+        cache.put((k,), entry)
+    assert len(cache) == 2 and cache.get((0,), depth) is None  # the oldest went
+    assert cache.get((2,), depth) is entry
+    assert cache.get((1,), depth * 1.05) is None  # same key, another surface: rejected
+    assert (cache.hits, cache.misses, cache.rejected) == (1, 1, 1)
+    o = np.array([0.0, 0.0, 0.0])
+    assert pose_key(o, depth, 0.03, 0.03) != pose_key(o + 0.05, depth, 0.03, 0.03)
+    assert pose_key(o, depth, 0.03, 0.03) != pose_key(o, depth + 0.1, 0.03, 0.03)
+
+
+@pytest.fixture(scope="module")
+def still_records() -> list[object]:
+    hand = HandMotion(2.6, seed=4, move_m=0.0, move_rad=0.0)
+    settings = SimulationSettings(seconds=2.6, depth_fps=10.0, seed=4, presses=(0.1,), motion=hand)
+    return list(simulate(Scene.load("cylinder-convex"), CAL, settings))
+
+
+def _feed(rt: Runtime, clock: VirtualClock, records: list[object]) -> None:
+    for r in records:
+        t = getattr(r, "receive_ns", None)
+        if t is None:
+            continue
+        clock.advance_to(t)
+        rt.tick()
+        if isinstance(r, ImuSample):
+            rt.on_imu(r)
+        elif isinstance(r, DepthFrame):
+            rt.on_depth(r)
+        elif isinstance(r, ButtonEvent):
+            rt.on_button(r)
+
+
+def test_a_still_hand_gives_a_still_image(still_records: list[object]) -> None:
+    rt, clock, _display = _runtime()
+    _feed(rt, clock, still_records)
+    assert rt.state == State.PROJECTING
+    assert not [e for e in rt.events if e["event"] == "moving"]
+    # the capture, then at most one re-warp as the average of more frames settles
+    assert 1 <= len(rt.updates) <= 2, rt.updates
+    assert rt.counters["estimates"] >= 8
+
+
+def test_faults_keep_the_frame_mark_it_and_clear(still_records: list[object]) -> None:
+    rt, clock, display = _runtime()
+    _feed(rt, clock, still_records)
+    good = display.last.copy()  # type: ignore[union-attr]
+    rt.on_imu_error("IMU read failed")
+    rt.on_depth_error("the OAK-D stopped sending depth")
+    marked = display.last
+    assert marked is not None and set(rt.faults) == {"imu", "camera"}
+    differs = np.any(marked != good, axis=2)
+    ys, xs = np.nonzero(differs)
+    assert ys.max() < 30 and xs.min() > CAL.projector.width - 60  # only the small mark
+    frames = [r for r in still_records if isinstance(r, DepthFrame)]
+    imu = [r for r in still_records if isinstance(r, ImuSample)]
+    clock.advance_to(clock.now_ns() + 100 * MS)
+    rt.on_imu(replace(imu[-1], sensor_ns=clock.now_ns(), receive_ns=clock.now_ns()))
+    rt.on_depth(replace(frames[-1], receive_ns=clock.now_ns()))
+    assert rt.faults == {} and np.array_equal(display.last, good)
+    assert rt.status()["state"] == "projecting"
+
+
+def test_a_depth_dropout_is_a_fault_not_a_crash(still_records: list[object]) -> None:
+    rt, clock, _display = _runtime()
+    _feed(rt, clock, still_records)
+    frame = next(r for r in still_records if isinstance(r, DepthFrame))
+    clock.advance_to(clock.now_ns() + 300 * MS)
+    rt.on_depth(replace(frame, depth_mm=np.zeros_like(frame.depth_mm), receive_ns=clock.now_ns()))
+    assert "depth" in rt.faults
+    far = frame.depth_mm.copy()
+    far[far > 0] = 9000
+    clock.advance_to(clock.now_ns() + 300 * MS)
+    rt.on_depth(replace(frame, depth_mm=far, receive_ns=clock.now_ns()))
+    assert "range" in rt.faults
+
+
+def test_content_from_the_link_is_shown_without_a_restart(tmp_path: Path) -> None:
+    rt, _clock, display = _runtime()
+    img = np.zeros((200, 300, 3), np.uint8)
+    img[:, :150] = (0, 0, 255)
+    cv2.imwrite(str(tmp_path / "red.png"), img)
+    cv2.imwrite(str(tmp_path / "mask.png"), np.full((200, 300), 255, np.uint8))
+    cv2.imwrite(str(tmp_path / "small.png"), np.zeros((10, 10), np.uint8))
+    rt.activate(Content(tmp_path / "red.png", tmp_path / "mask.png", Settings("content", 0.6)))
+    shown = display.count
+    rt.tick()  # the runtime's own thread takes it up
+    assert rt.item.name == "red.png" and display.count == shown + 1
+    assert rt.status()["image"] == "red.png" and rt.status()["settings"]["threshold"] == 0.6
+    png = cv2.imdecode(np.frombuffer(rt.frame_png(), np.uint8), cv2.IMREAD_COLOR)
+    assert png.shape == (CAL.projector.height, CAL.projector.width, 3)
+    with pytest.raises(ImageError):
+        rt.activate(Content(tmp_path / "red.png", tmp_path / "small.png"))
+    assert rt.status()["errors"]
