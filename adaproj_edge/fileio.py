@@ -111,6 +111,29 @@ def read_input(
         raise error(f"cannot read {what} {path}: {e.strerror}") from None
 
 
+def load_npz(
+    path: str | os.PathLike[str],
+    what: str,
+    required: tuple[str, ...],
+    error: type[InputError] = InputError,
+) -> dict[str, NDArray[Any]]:
+    """All arrays of an ``.npz`` file, checked to contain ``required``.
+
+    Any damage (not a zip, truncated, a corrupt member, pickled objects) is ``error``
+    naming ``what``; the file is read whole first, so no handle is left open.
+    """
+    data = read_input(path, what, error)
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as f:
+            arrays = {k: np.asarray(f[k]) for k in f.files}
+    except Exception as e:  # zipfile, zlib, EOF, pickle refusals: all mean a damaged file
+        raise error(f"cannot read {what} {path}: {type(e).__name__}: {e}") from None
+    for key in required:
+        if key not in arrays:
+            raise error(f"{what} {path} has no {key!r} array")
+    return arrays
+
+
 def read_image(path: str | os.PathLike[str], *, gray: bool = False) -> NDArray[np.uint8]:
     """Read an image file with a clear error for every way it can fail."""
     return decode_image(read_input(path, "image", ImageError), str(path), gray=gray)

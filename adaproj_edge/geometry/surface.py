@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.errors import SurfaceError
-from adaproj_edge.fileio import atomic_savez
+from adaproj_edge.fileio import atomic_savez, load_npz
 from adaproj_edge.geometry.projector import FloatArray, Projector
 
 MIN_VALID_FRACTION = 0.05
@@ -141,18 +141,14 @@ class Surface:
     def load(cls, path: str | os.PathLike[str]) -> Surface:
         """Read and validate a Surface file."""
         path = Path(path)
+        arrays = load_npz(path, "surface file", ("points", "K"), SurfaceError)
+        points = arrays["points"]
+        K = arrays["K"]
         try:
-            with np.load(path, allow_pickle=False) as f:
-                for key in ("points", "K"):
-                    if key not in f:
-                        raise SurfaceError(f"surface file {path} has no {key!r} array")
-                points = np.asarray(f["points"])
-                K = np.asarray(f["K"], dtype=np.float64)
-                meta = json.loads(str(f["meta"])) if "meta" in f else {}
-        except FileNotFoundError:
-            raise SurfaceError(f"surface file not found: {path}") from None
-        except (OSError, ValueError) as e:
-            raise SurfaceError(f"cannot read surface file {path}: {e}") from None
+            meta = json.loads(str(arrays["meta"])) if "meta" in arrays else {}
+            K = K.astype(np.float64)
+        except (ValueError, TypeError) as e:
+            raise SurfaceError(f"surface file {path}: unreadable meta or K: {e}") from None
         if not isinstance(meta, dict):
             raise SurfaceError(f"surface file {path}: meta must be a JSON object")
         if points.ndim != 3 or points.shape[-1] != 3:

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.errors import InputError
-from adaproj_edge.fileio import atomic_savez
+from adaproj_edge.fileio import atomic_savez, load_npz
 from adaproj_edge.geometry.projector import FloatArray, Projector
 
 MAX_GRID = 400
@@ -95,21 +95,18 @@ class Warp:
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Warp:
         """Read a warp file written by :meth:`save`."""
+        arrays = load_npz(path, "warp file", ("grid_uv", "image_xy", "K", "meta"))
         try:
-            with np.load(Path(path), allow_pickle=False) as f:
-                for key in ("grid_uv", "image_xy", "K", "meta"):
-                    if key not in f:
-                        raise InputError(f"warp file {path} has no {key!r} array")
-                meta = json.loads(str(f["meta"]))
-                grid_uv = np.asarray(f["grid_uv"], dtype=np.float64)
-                image_xy = np.asarray(f["image_xy"], dtype=np.float64)
-                K = np.asarray(f["K"], dtype=np.float64)
-                depth = np.asarray(f["depth"], dtype=np.float64) if "depth" in f else None
-                map_xy = np.asarray(f["map_xy"], dtype=np.float32) if "map_xy" in f else None
-        except FileNotFoundError:
-            raise InputError(f"warp file not found: {path}") from None
-        except (KeyError, OSError, ValueError) as e:
+            meta = json.loads(str(arrays["meta"]))
+            grid_uv = arrays["grid_uv"].astype(np.float64)
+            image_xy = arrays["image_xy"].astype(np.float64)
+            K = arrays["K"].astype(np.float64)
+            depth = arrays["depth"].astype(np.float64) if "depth" in arrays else None
+            map_xy = arrays["map_xy"].astype(np.float32) if "map_xy" in arrays else None
+        except (ValueError, TypeError) as e:
             raise InputError(f"cannot read warp file {path}: {e}") from None
+        if not isinstance(meta, dict):
+            raise InputError(f"warp file {path}: meta must be a JSON object")
         if grid_uv.shape != image_xy.shape or grid_uv.ndim != 3 or grid_uv.shape[2] != 2:
             raise InputError(f"warp file {path}: grid_uv and image_xy must both be (R, C, 2)")
         try:
