@@ -37,12 +37,15 @@ def main() -> None:
         for mask_name, mask in subject_masks().items():
             conf = distortion(name, "conformal")
             cont = distortion(name, "content", mask_name)
+            paper = distortion(name, "content", mask_name, "paper")
             a = conf.select(in_mask(conf, mask))
             b = cont.select(in_mask(cont, mask))
+            p = paper.select(in_mask(paper, mask))
             print(
                 f"{name:17s} {mask_name:10s} size {b.size_std:.4f}/{a.size_std:.4f} "
                 f"= {b.size_std / a.size_std:.2f}x   angle {b.angle_mean:.4f}/{a.angle_mean:.4f} "
-                f"= {b.angle_mean / a.angle_mean:.2f}x"
+                f"= {b.angle_mean / a.angle_mean:.2f}x   (paper's alternation: size "
+                f"{p.size_std / a.size_std:.2f}x, angle {p.angle_mean / a.angle_mean:.2f}x)"
             )
 
 

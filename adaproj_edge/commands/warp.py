@@ -11,7 +11,7 @@ from adaproj_edge.commands._inputs import content_map, grid_arg, load_maps, load
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
 from adaproj_edge.fileio import read_image, write_png
 from adaproj_edge.render.project import project
-from adaproj_edge.warp.engine import MODES, WarpSettings
+from adaproj_edge.warp.engine import ALTERNATIONS, MODES, WarpSettings
 from adaproj_edge.warp.mesh import Grid
 from adaproj_edge.warp.quality import measure
 
@@ -38,13 +38,21 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--mode", choices=MODES, default="content")
     p.add_argument("--grid", type=grid_arg, default=Grid(), help="cells, e.g. 20x20")
     p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="T of eq. 5")
+    p.add_argument(
+        "--alternation",
+        choices=ALTERNATIONS,
+        default="ours",
+        help="content-aware step: ours (default) or the paper's as written (for comparison)",
+    )
     p.add_argument("--out", type=Path, required=True, help="warp file to write (.npz)")
     p.add_argument("--frame", type=Path, help="also write the projector frame (PNG)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    settings = WarpSettings(mode=args.mode, grid=args.grid, threshold=args.threshold)
+    settings = WarpSettings(
+        mode=args.mode, grid=args.grid, threshold=args.threshold, alternation=args.alternation
+    )
     surface = load_surface(args.surface)
     image = read_image(args.image)
     mask, given = load_maps(image, args.mask, args.content_map)

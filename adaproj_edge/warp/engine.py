@@ -33,6 +33,7 @@ from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
 from adaproj_edge.warp.solve import (
     ContentAwareSolver,
     ContentAwareWeights,
+    PaperAlternation,
     solve_conformal,
     solve_content_free,
 )
@@ -56,6 +57,8 @@ FAST = Backend(solve_conformal, solve_content_free, ContentAwareSolver)
 
 Mode = Literal["content", "conformal", "standard"]
 MODES: tuple[Mode, ...] = ("content", "conformal", "standard")
+Alternation = Literal["ours", "paper"]
+ALTERNATIONS: tuple[Alternation, ...] = ("ours", "paper")
 
 
 @dataclass(frozen=True)
@@ -70,6 +73,8 @@ class WarpSettings:
         ``tolerance`` content pixels or after ``max_iterations`` steps
     up : "up" in frame P (from the IMU; default: the projector held level)
     weights : the content-aware energy's weights
+    alternation : "ours" (default) or "paper" (§4.2 as written: fixed boundary,
+        regulariser toward the last iterate; kept for comparison)
     """
 
     mode: Mode = "content"
@@ -80,10 +85,13 @@ class WarpSettings:
     tolerance: float = 0.05
     up: tuple[float, float, float] = DEFAULT_UP
     weights: ContentAwareWeights = field(default_factory=ContentAwareWeights)
+    alternation: Alternation = "ours"
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise InputError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if self.alternation not in ALTERNATIONS:
+            raise InputError(f"alternation must be one of {', '.join(ALTERNATIONS)}")
         if not 0.0 <= self.threshold <= 1.0:
             raise InputError(f"threshold must be in [0, 1], got {self.threshold}")
         if self.max_iterations < 0 or self.tolerance <= 0 or self.lam < 0:
@@ -146,6 +154,7 @@ def compute_warp(
     iterations = 0
     salient_fraction = 0.0
     if settings.mode == "content":
+        v_conformal = v
         v, _ = backend.content_free(mesh, v, settings.lam)
         placement = place(mesh, v, content_size, settings.up)
         timings["init"] = time.perf_counter() - t0
@@ -155,9 +164,14 @@ def compute_warp(
             if np.ndim(values) != 2:
                 raise InputError(f"content map must be a 2D array, got shape {np.shape(values)}")
             cmap = ContentMap(np.asarray(values, np.float32), content_size, settings.threshold)
-            v, placement, iterations, salient_fraction = refine(
-                mesh, v, placement, cmap, settings, backend, timings
-            )
+            if settings.alternation == "paper":
+                v, iterations, salient_fraction = refine_as_paper(
+                    mesh, v_conformal, v, placement, cmap, settings
+                )
+            else:
+                v, placement, iterations, salient_fraction = refine(
+                    mesh, v, placement, cmap, settings, backend, timings
+                )
         timings["refine"] = time.perf_counter() - t2
     else:
         placement = place(mesh, v, content_size, settings.up)
@@ -209,6 +223,36 @@ def refine(
     return v, placement, iterations, fraction
 
 
+def refine_as_paper(
+    mesh: MeshGeometry,
+    v_conformal: FloatArray,
+    v: FloatArray,
+    placement: Placement,
+    content_map: ContentMap,
+    settings: WarpSettings,
+) -> tuple[FloatArray, int, float]:
+    """Algorithm 1 with eq. 9 as written (boundary fixed, so the placement stays)."""
+    paper = PaperAlternation(mesh, v_conformal, v, settings.lam)
+    iterations = 0
+    fraction = 0.0
+    for _ in range(settings.max_iterations):
+        xy = placement.apply(v)
+        c = content_map.sample(xy).astype(np.float64)
+        w = (c >= settings.threshold).astype(np.float64)
+        fraction = float(w.mean())
+        if w.min() == w.max():
+            break
+        v_new = paper.step(v, w, c)
+        if not _orientation_ok(mesh, v_new):
+            break
+        motion = float(np.mean(np.linalg.norm(placement.apply(v_new) - xy, axis=1)))
+        v = v_new
+        iterations += 1
+        if motion < settings.tolerance:
+            break
+    return v, iterations, fraction
+
+
 def _orientation_ok(mesh: MeshGeometry, v: FloatArray) -> bool:
     """No triangle folded over (all keep the orientation they have in the projector)."""
     q = v[mesh.tris]
@@ -238,6 +282,7 @@ def _make_warp(
     depth[~mesh.used] = np.nan
     meta: dict[str, Any] = {
         "mode": settings.mode,
+        "alternation": settings.alternation,
         "grid": str(settings.grid),
         "iterations": iterations,
         "threshold": settings.threshold,

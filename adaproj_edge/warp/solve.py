@@ -217,3 +217,68 @@ class ContentAwareSolver:
         x_fixed = np.zeros(2 * n)
         x_fixed[2 * self.pinned : 2 * self.pinned + 2] = v[self.pinned]
         return self.system.solve(rows.vals, rows.rhs, weights, x_fixed).reshape(n, 2)
+
+
+@dataclass
+class PaperAlternation:
+    """The paper's alternation step as written (§4.2, eq. 8–9, Algorithm 1).
+
+    ``E_a`` weighted by the binary saliency of each role's apex, ``lambda E_r`` with the
+    auxiliary scales (smoothness weighted ``w_i + w_j``) and edge directions from the
+    E_a-only solution, the regulariser ``(1 - C(V_i)) |V_i - V_i^(n)|^2``, and the
+    boundary vertices fixed to the initial solution. Kept for comparison
+    (``WarpSettings(alternation="paper")``): it barely moves the salient region, which
+    is why :class:`ContentAwareSolver` is the default.
+    """
+
+    mesh: MeshGeometry
+    v_conformal: FloatArray
+    v_initial: FloatArray
+    lam: float = 1.0
+
+    def __post_init__(self) -> None:
+        mesh = self.mesh
+        n = mesh.n
+        self.d_edges, self.d_len = directed(mesh.edges, mesh.lengths)
+        dirs = edge_directions(self.v_conformal, self.d_edges)
+        self.blocks = [
+            terms.conformal_rows(mesh.tris, mesh.coords, stride=3),
+            terms.scale_edge_rows(self.d_edges, self.d_len, dirs),
+            terms.scale_smooth_rows(mesh.edges),
+            terms.position_rows(n, stride=3),
+        ]
+        self.rows = Rows.concat(self.blocks)
+        self.offsets = np.concatenate([[0], np.cumsum([b.rhs.size for b in self.blocks])])
+        boundary = np.unique(mesh.boundary)
+        fixed = np.zeros(3 * n, dtype=bool)
+        fixed[3 * boundary] = True
+        fixed[3 * boundary + 1] = True
+        self.fixed = fixed
+        cols = self.rows.cols
+        self.system = mesh.topology.remember(
+            "paper", lambda: BandedLeastSquares(cols, 3 * n, fixed)
+        )
+        self.apex = np.repeat(mesh.tris, 2, axis=1).reshape(-1)
+        self.l2 = float(np.mean(mesh.lengths**2))
+        self.s = np.ones(n)
+
+    def step(self, v: FloatArray, w: FloatArray, c: FloatArray) -> FloatArray:
+        """One solve of eq. 9 from ``v`` (n, 2) with saliency ``w`` and content map ``c``."""
+        n = self.mesh.n
+        rows = self.rows
+        tail = slice(int(self.offsets[3]), int(self.offsets[4]))
+        rows.rhs[tail] = v.ravel()
+        ei, ej = self.mesh.edges[:, 0], self.mesh.edges[:, 1]
+        reg = np.clip(1.0 - c, 0.0, 1.0) + 1e-6  # eq. 9, and a trace to keep it definite
+        weights = np.concatenate(
+            [
+                w[self.apex] + 1e-6,
+                np.full(self.blocks[1].rhs.size, self.lam),
+                self.lam * self.l2 * (w[ei] + w[ej]),
+                np.repeat(reg, 2),
+            ]
+        )
+        x_fixed = np.column_stack([self.v_initial, self.s]).ravel()  # only boundary x, y count
+        x = self.system.solve(rows.vals, rows.rhs, weights, x_fixed).reshape(n, 3)
+        self.s = x[:, 2].copy()
+        return x[:, :2].copy()

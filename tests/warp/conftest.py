@@ -39,15 +39,20 @@ def surface(name: str) -> Surface:
 
 
 @cache
-def warped(name: str, mode: str, mask: str | None = None) -> tuple[Warp, NDArray[np.float32]]:
+def warped(
+    name: str, mode: str, mask: str | None = None, alternation: str = "ours"
+) -> tuple[Warp, NDArray[np.float32]]:
     s = surface(name)
     cmap = None if mask is None else subject_masks()[mask]
-    warp = compute_warp(s, CONTENT, cmap, WarpSettings(mode=mode))  # type: ignore[arg-type]
+    settings = WarpSettings(mode=mode, alternation=alternation)  # type: ignore[arg-type]
+    warp = compute_warp(s, CONTENT, cmap, settings)
     return warp, map_from_warp(warp, None if mode == "standard" else s)
 
 
 @cache
-def distortion(name: str, mode: str, mask: str | None = None) -> Distortion:
-    _, m = warped(name, mode, mask)
+def distortion(
+    name: str, mode: str, mask: str | None = None, alternation: str = "ours"
+) -> Distortion:
+    _, m = warped(name, mode, mask, alternation)
     s = surface(name)
     return measure(m, get_surface(name), s.projector.K)
