@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from adaproj_edge.app.memory import pin_mmap_threshold
 from adaproj_edge.app.replay import builtin_item
 from adaproj_edge.app.runtime import AppSettings, Runtime
 from adaproj_edge.errors import AdaprojError, DeviceError
@@ -84,6 +85,7 @@ def run_device(
     board: Board, store_dir: Path, settings: AppSettings | None = None, retry_s: float = 1.0
 ) -> None:
     """Run the projector until interrupted (Ctrl-C / SIGTERM as KeyboardInterrupt)."""
+    pin_mmap_threshold()
     clock = MonotonicClock()
     calibration = board.calibration()
     display = FramebufferDisplay(board.display_device)

@@ -27,6 +27,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from adaproj_edge.app.memory import pin_mmap_threshold
 from adaproj_edge.app.pipeline import WarpPipeline
 from adaproj_edge.app.runtime import AppSettings, Image, Item, Runtime, mask_content_map
 from adaproj_edge.content.builtin import poster, poster_mask
@@ -191,6 +192,7 @@ def replay_session(
     """Replay ``path`` through the runtime; write frames, summary and contact sheet to
     ``out`` (when given); return the summary."""
     options = options or ReplayOptions()
+    pin_mmap_threshold()
     path = Path(path)
     replay = Replay(path)
     scan = Scan()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -194,3 +195,39 @@ def test_content_from_the_link_is_shown_without_a_restart(tmp_path: Path) -> Non
     with pytest.raises(ImageError):
         rt.activate(Content(tmp_path / "red.png", tmp_path / "small.png"))
     assert rt.status()["errors"]
+
+
+def test_a_device_that_fails_is_reported_and_opened_again() -> None:
+    import queue
+    import threading
+
+    from adaproj_edge.app.live import _pump, _Source
+    from adaproj_edge.errors import DeviceError
+
+    opened: list[int] = []
+
+    def open_depth() -> Callable[[], object]:
+        opened.append(1)
+        if len(opened) == 1:
+            raise DeviceError("the OAK-D is not there")
+        return lambda: "frame"
+
+    out: queue.Queue[tuple[str, object]] = queue.Queue()
+    stop = threading.Event()
+    clock = VirtualClock()
+    t = threading.Thread(target=_pump, args=(_Source("depth", open_depth), out, stop, clock, 1.0))
+    t.start()
+    first, second = out.get(timeout=5), out.get(timeout=5)
+    stop.set()
+    t.join(timeout=5)
+    assert first == ("depth-error", "the OAK-D is not there")
+    assert second == ("depth", "frame") and clock.now_ns() >= 1_000_000_000
+
+
+def test_run_without_the_hardware_is_a_one_line_error(capsys: pytest.CaptureFixture[str]) -> None:
+    if Path("/sys/class/graphics/fb0").exists():
+        pytest.skip("a framebuffer is attached")
+    from adaproj_edge.cli import main
+
+    assert main(["run", "--board", "rpi5-oakd"]) == 2
+    assert "framebuffer" in capsys.readouterr().err
