@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.geometry.projector import FloatArray
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.geometry.triangles import triangle_normals
+from adaproj_edge.geometry.triangles import cross, triangle_normals
 
 IntArray = NDArray[np.intp]
 
@@ -88,9 +88,7 @@ def unfold_creases(
     )
     n = triangle_normals(tri_pts)
     size = np.sqrt(
-        np.linalg.norm(
-            np.cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0]), axis=1
-        )
+        np.linalg.norm(cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0]), axis=1)
     )
     probes = np.stack(
         [

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.geometry.triangles import unique_edges
 
 IntArray = NDArray[np.intp]
 
@@ -46,8 +47,7 @@ class Rect:
 def boundary_edges(tris: IntArray) -> IntArray:
     """Edges (E, 2) that belong to exactly one of the triangles ``tris`` (T, 3)."""
     e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
-    e = np.sort(e, axis=1)
-    uniq, counts = np.unique(e, axis=0, return_counts=True)
+    uniq, _, counts = unique_edges(e, int(tris.max()) + 1)
     out: IntArray = uniq[counts == 1]
     return out
 

@@ -38,13 +38,36 @@ def grid_edges(rows: int, cols: int) -> IntArray:
     return np.concatenate([h, v, g]).astype(np.intp)
 
 
+def cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Row-wise cross product of (..., 3) arrays (np.cross without its overhead)."""
+    out: FloatArray = np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
+    return out
+
+
+def unique_edges(pairs: IntArray, n_vertices: int) -> tuple[IntArray, IntArray, IntArray]:
+    """Unique undirected edges of ``pairs`` (E, 2): edges (U, 2) sorted, the index of
+    each pair's edge (E,), and how often each edge occurs (U,)."""
+    lo = np.minimum(pairs[:, 0], pairs[:, 1]).astype(np.int64)
+    hi = np.maximum(pairs[:, 0], pairs[:, 1]).astype(np.int64)
+    keys, inverse, counts = np.unique(lo * n_vertices + hi, return_inverse=True, return_counts=True)
+    edges = np.stack([keys // n_vertices, keys % n_vertices], axis=1).astype(np.intp)
+    return edges, inverse.astype(np.intp), counts.astype(np.intp)
+
+
 def triangle_normals(p: FloatArray) -> FloatArray:
     """Unit normals (T, 3) of 3D triangles ``p`` (T, 3, 3), facing the projector.
 
     Triangles that are positively oriented in the projector image have a cross
     product pointing away from the projector; the normal is its negation.
     """
-    n = -np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    n = -cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
     norm = np.linalg.norm(n, axis=1, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
         out: FloatArray = n / norm
@@ -71,7 +94,7 @@ def conformal_coords(p: FloatArray) -> FloatArray:
         ee = np.sum(e * e, axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
             out[:, k, 0] = np.sum(d * e, axis=1) / ee
-            out[:, k, 1] = np.sum(d * np.cross(n, e), axis=1) / ee
+            out[:, k, 1] = np.sum(d * cross(n, e), axis=1) / ee
     return out
 
 

@@ -15,9 +15,13 @@ from numpy.typing import NDArray
 from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.creases import unfold_creases
 from adaproj_edge.geometry.projector import FloatArray
-from adaproj_edge.geometry.rectangle import boundary_edges
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.geometry.triangles import conformal_coords, grid_triangles, triangle_normals
+from adaproj_edge.geometry.triangles import (
+    conformal_coords,
+    grid_triangles,
+    triangle_normals,
+    unique_edges,
+)
 from adaproj_edge.warp.mesh import Grid
 
 IntArray = NDArray[np.intp]
@@ -54,8 +58,8 @@ class Topology:
         index[verts] = np.arange(verts.size)
         tris = index[cand]
         e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
-        edges, inverse = np.unique(np.sort(e, axis=1), axis=0, return_inverse=True)
-        return cls(cand, used, index, verts, tris, edges, inverse.ravel(), boundary_edges(tris))
+        edges, inverse, counts = unique_edges(e, max(int(verts.size), 1))
+        return cls(cand, used, index, verts, tris, edges, inverse, edges[counts == 1])
 
     def remember(self, name: str, make: Callable[[], T]) -> T:
         """``make()`` once per topology (solver structures)."""
@@ -195,13 +199,13 @@ class MeshGeometry:
 
 def _largest_component(tris: IntArray, n_vertices: int) -> IntArray:
     """The triangles of the largest vertex-connected component (by triangle count)."""
-    t = tris.shape[0]
-    rows = np.repeat(np.arange(t), 3)
-    inc = scipy.sparse.csr_matrix((np.ones(3 * t), (rows, tris.ravel())), shape=(t, n_vertices))
-    adj = inc @ inc.T
-    ncomp, labels = scipy.sparse.csgraph.connected_components(adj, directed=False)
+    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]]])
+    graph = scipy.sparse.coo_matrix(
+        (np.ones(e.shape[0]), (e[:, 0], e[:, 1])), shape=(n_vertices, n_vertices)
+    )
+    ncomp, labels = scipy.sparse.csgraph.connected_components(graph, directed=False)
     if ncomp == 1:
         return tris
-    counts = np.bincount(labels)
-    keep: IntArray = tris[labels == int(np.argmax(counts))]
+    per_tri = labels[tris[:, 0]]
+    keep: IntArray = tris[per_tri == int(np.argmax(np.bincount(per_tri)))]
     return keep

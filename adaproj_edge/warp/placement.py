@@ -14,7 +14,7 @@ import numpy as np
 
 from adaproj_edge.geometry.projector import FloatArray
 from adaproj_edge.geometry.rectangle import inscribed_rectangle
-from adaproj_edge.geometry.triangles import triangle_normals
+from adaproj_edge.geometry.triangles import cross, triangle_normals
 from adaproj_edge.warp.meshgeom import MeshGeometry
 
 DEFAULT_UP = (0.0, -1.0, 0.0)  # "up" in frame P when the projector is held level
@@ -63,7 +63,7 @@ def upright_angle(mesh: MeshGeometry, v: FloatArray, up: FloatArray) -> float:
     a = np.where(ok, (m22 * r1 - m12 * r2) / np.where(ok, det, 1.0), 0.0)
     b = np.where(ok, (m11 * r2 - m12 * r1) / np.where(ok, det, 1.0), 0.0)
     d = a[:, None] * (q[:, 1] - q[:, 0]) + b[:, None] * (q[:, 2] - q[:, 0])
-    area = 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
+    area = 0.5 * np.linalg.norm(cross(e1, e2), axis=1)
     strength = np.linalg.norm(g, axis=1)
     norm = np.linalg.norm(d, axis=1)
     good = ok & (norm > 0)
