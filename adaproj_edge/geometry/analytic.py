@@ -85,8 +85,6 @@ class Corner:
             x = origins[..., 0] + t * dirs[..., 0]
             on_side = (x - self.x0) * side >= 0
             hits.append(np.where(on_side & (t > 1e-9), t, np.nan))
-        if self.concave:
-            return np.fmin(hits[0], hits[1])
         return np.fmin(hits[0], hits[1])
 
 

@@ -93,3 +93,19 @@ def test_grid_parsing() -> None:
     for bad in ("20", "x", "0x5", "20x20x2", "1000x1000"):
         with pytest.raises(InputError):
             Grid.parse(bad)
+
+
+def test_content_is_upright_for_the_given_gravity() -> None:
+    """With "up" rolled by 20 degrees in frame P, content "down" follows it on the wall."""
+    s = simulate_surface("plane", step=8)
+    a = np.deg2rad(20.0)
+    up = (float(np.sin(a)), -float(np.cos(a)), 0.0)
+    warp = compute_warp(s, (320, 200), settings=WarpSettings(mode="conformal", up=up))
+    xy = warp.image_xy
+    # true down points 20 degrees to the projector's left; walking straight down the
+    # projector's columns therefore drifts 20 degrees to the right of content "down"
+    step = xy[-1, 10] - xy[0, 10]
+    assert np.degrees(np.arctan2(step[0], step[1])) == pytest.approx(20.0, abs=0.5)
+    level = compute_warp(s, (320, 200), settings=WarpSettings(mode="conformal"))
+    step0 = level.image_xy[-1, 10] - level.image_xy[0, 10]
+    assert abs(np.degrees(np.arctan2(step0[0], step0[1]))) < 0.5
