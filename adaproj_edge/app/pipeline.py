@@ -115,7 +115,7 @@ class WarpPipeline:
         self,
         projector: Projector,
         grid: Grid | None = None,
-        map_scale: int = 2,
+        map_scale: int = 4,
         warm_start: bool = True,
         caching: bool = True,
     ) -> None:

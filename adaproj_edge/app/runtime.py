@@ -103,7 +103,7 @@ class AppSettings:
     pose_cache_size: int = 8
     caching: bool = True
     warm_start: bool = True
-    map_scale: int = 2
+    map_scale: int = 4
     orientation_bin_rad: float = 0.03
     depth_bin_m: float = 0.03
     motion: MotionSettings = field(default_factory=MotionSettings)
