@@ -82,14 +82,18 @@ def dispatch(runtime: Runtime, kind: str, item: Any) -> None:
 
 
 def run_device(
-    board: Board, store_dir: Path, settings: AppSettings | None = None, retry_s: float = 1.0
+    board: Board,
+    store_dir: Path,
+    state_dir: Path | None = None,
+    settings: AppSettings | None = None,
+    retry_s: float = 1.0,
 ) -> None:
     """Run the projector until interrupted (Ctrl-C / SIGTERM as KeyboardInterrupt)."""
     pin_mmap_threshold()
     clock = MonotonicClock()
     calibration = board.calibration()
     display = FramebufferDisplay(board.display_device)
-    runtime = Runtime(calibration, display, clock, [builtin_item()], settings)
+    runtime = Runtime(calibration, display, clock, [builtin_item()], settings, state_dir=state_dir)
 
     def open_imu() -> Reader:
         bus = open_i2c(board.imu.bus)

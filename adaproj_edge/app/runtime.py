@@ -48,6 +48,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -148,6 +149,7 @@ def saliency_content_map(
 
 FrameHook = Callable[[int, Image, dict[str, Any]], None]
 
+LAST_WARP = "last-warp.npz"
 MARK_COLOURS = {"camera": (0, 0, 255), "depth": (0, 160, 255), "range": (255, 0, 255)}
 
 
@@ -164,6 +166,7 @@ class Runtime:
         settings: AppSettings | None = None,
         content_map_fn: ContentMapFn = saliency_content_map,
         on_frame: FrameHook | None = None,
+        state_dir: Path | None = None,
     ) -> None:
         if not items:
             raise AdaprojError("the runtime needs at least one content item")
@@ -175,6 +178,7 @@ class Runtime:
         self.current = 0
         self.content_map_fn = content_map_fn
         self.on_frame = on_frame
+        self.state_dir = state_dir
         self.motion = MotionTracker(calibration.R_P_I, s.motion)
         self.pipeline = WarpPipeline(
             calibration.projector, s.grid, s.map_scale, s.warm_start, s.caching
@@ -259,10 +263,42 @@ class Runtime:
 
     # ------------------------------------------------------------------ lifecycle
     def boot(self) -> None:
-        """Show the active content plainly and wait for the button."""
+        """Show the active content with the last good warp (kept in ``state_dir``)
+        when it fits, plainly otherwise, and wait for the button."""
         self._set_state(State.BOOT)
-        self._show_plain("boot")
+        warp = self._load_last_warp()
+        if warp is not None:
+            self.shown_warp, self.shown_map = warp, None
+            self._maps = self.pipeline.maps(warp)[1]
+            self._render("boot", "last-warp")
+        else:
+            self._show_plain("boot")
         self._set_state(State.IDLE)
+
+    def _load_last_warp(self) -> Warp | None:
+        if self.state_dir is None or not (self.state_dir / LAST_WARP).exists():
+            return None
+        try:
+            warp = Warp.load(self.state_dir / LAST_WARP)
+        except AdaprojError as e:
+            log.warning("ignoring the last warp: %s", e)
+            return None
+        p = self.calibration.projector
+        if warp.content_size != self.item.size or (warp.projector.width, warp.projector.height) != (
+            p.width,
+            p.height,
+        ):
+            return None
+        return warp
+
+    def _save_last_warp(self, warp: Warp) -> None:
+        if self.state_dir is None:
+            return
+        try:
+            self.state_dir.mkdir(parents=True, exist_ok=True)
+            warp.save(self.state_dir / LAST_WARP)
+        except (OSError, AdaprojError) as e:
+            log.warning("cannot keep the last warp in %s: %s", self.state_dir, e)
 
     # ------------------------------------------------------------------ inputs
     def on_imu(self, sample: ImuSample) -> None:
@@ -484,6 +520,8 @@ class Runtime:
         self.shown_warp, self.shown_map, self._maps = warp, map_xy, maps
         self._render(reason, kind)
         elapsed = time.perf_counter() - t0
+        if refine:
+            self._save_last_warp(warp)
         self.pipeline.times.add("update_" + kind, elapsed)
         if self._motion_ns is not None:
             self.latencies_ms.append((self._now() - self._motion_ns) / 1e6 + elapsed * 1e3)

@@ -26,13 +26,19 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument(
         "--store", type=Path, default=Path("/var/lib/adaproj/content"), help="content store"
     )
+    p.add_argument(
+        "--state",
+        type=Path,
+        default=Path("/var/lib/adaproj/state"),
+        help="where the last good warp is kept (shown at the next boot)",
+    )
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     board = Board.load(args.board)
     try:
-        run_device(board, args.store)
+        run_device(board, args.store, args.state)
     except KeyboardInterrupt:
         log.info("stopped")
     return 0

@@ -231,3 +231,26 @@ def test_run_without_the_hardware_is_a_one_line_error(capsys: pytest.CaptureFixt
 
     assert main(["run", "--board", "rpi5-oakd"]) == 2
     assert "framebuffer" in capsys.readouterr().err
+
+
+def test_boot_shows_the_last_good_warp(still_records: list[object], tmp_path: Path) -> None:
+    clock = VirtualClock(1_000 * MS)
+    display = MemoryDisplay(CAL.projector.width, CAL.projector.height)
+    rt = Runtime(CAL, display, clock, [builtin_item()], state_dir=tmp_path)
+    rt.boot()
+    _feed(rt, clock, still_records)
+    assert (tmp_path / "last-warp.npz").exists()
+    kinds: list[str] = []
+    again = Runtime(
+        CAL,
+        MemoryDisplay(CAL.projector.width, CAL.projector.height),
+        VirtualClock(),
+        [builtin_item()],
+        on_frame=lambda t, f, info: kinds.append(info["kind"]),
+        state_dir=tmp_path,
+    )
+    again.boot()
+    assert kinds == ["last-warp"] and again.state == State.IDLE
+    other = Runtime(CAL, MemoryDisplay(), VirtualClock(), [_second_item()], state_dir=tmp_path)
+    other.boot()  # another content size: plainly
+    assert other.shown_warp is not None and other.shown_warp.meta["mode"] == "standard"
