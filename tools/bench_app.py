@@ -4,8 +4,9 @@
     .venv/bin/python tools/bench_app.py                   # a simulated 12-s session
     .venv/bin/python tools/bench_app.py SESSION.mcap
 
-Replays the session twice in the same run: with the per-pose warp cache and warm
-starts (the product), and with both turned off. Prints the time per stage (median,
+Replays the session in the same run with the per-pose warp cache and warm starts
+(the product) and with both turned off, interleaved ``--repeat`` times; per stage the
+run least disturbed by other load is reported. Prints the time per stage (median,
 p95) side by side, the motion-to-frame latency (session time from the IMU seeing the
 motion to the depth frame that triggered the new warp, plus the compute time of that
 update), and what a cache hit costs (lookup + check against the current depth).
@@ -67,6 +68,13 @@ def _fmt(t: dict[str, Any] | None) -> str:
     return f"{t['median_ms']:8.2f} / {t['p95_ms']:8.2f} ({t['n']:3d})"
 
 
+def _best(runs: list[dict[str, Any]], stage: str) -> dict[str, Any] | None:
+    """The stage's figures from the run where its median was lowest (least disturbed by
+    other load on the core)."""
+    got = [r["timings_ms"][stage] for r in runs if stage in r["timings_ms"]]
+    return min(got, key=lambda t: t["median_ms"]) if got else None
+
+
 def cache_hit_cost(repeats: int = 2000) -> tuple[float, float]:
     """Median and p95 (ms) of a pose-cache hit (lookup + depth check) on the default
     21x21 lattice with 8 entries."""
@@ -97,6 +105,7 @@ def main() -> int:
     )
     ap.add_argument("session", nargs="?", help="session file (default: simulate one)")
     ap.add_argument("--seconds", type=float, default=12.0, help="length of the simulated session")
+    ap.add_argument("--repeat", type=int, default=2, help="runs of each (best one reported)")
     args = ap.parse_args()
     cv2.setNumThreads(1)
     if hasattr(os, "sched_setaffinity"):
@@ -108,18 +117,24 @@ def main() -> int:
                 seconds=args.seconds, depth_fps=15.0, seed=5, presses=(0.2,)
             )
             simulate_session(Scene.load("cylinder-convex"), path, settings=settings)
-        runs = {}
-        for label, on in (("cache+warm", True), ("off", False)):
-            s = replace(AppSettings(), caching=on, warm_start=on)
-            t0 = time.perf_counter()
-            runs[label] = replay_session(path, None, ReplayOptions(s, score=False))
-            runs[label]["wall_s"] = time.perf_counter() - t0
+        runs: dict[str, list[dict[str, Any]]] = {"cache+warm": [], "off": []}
+        for _ in range(args.repeat):  # interleaved, so a busy spell hits both
+            for label, flag in (("cache+warm", True), ("off", False)):
+                s = replace(AppSettings(), caching=flag, warm_start=flag)
+                t0 = time.perf_counter()
+                r = replay_session(path, None, ReplayOptions(s, score=False))
+                r["wall_s"] = time.perf_counter() - t0
+                runs[label].append(r)
     on, off = runs["cache+warm"], runs["off"]
-    print(f"session {on['session']}: {on['duration_s']:.1f} s; one core; ms median / p95 (count)")
+    print(
+        f"session {on[0]['session']}: {on[0]['duration_s']:.1f} s; one core; ms median / p95 "
+        f"(count), best of {args.repeat} interleaved runs"
+    )
     print(f"{'stage':22s} {'cache+warm':>24s}   {'off':>24s}")
     for st in STAGES:
-        print(f"{st:22s} {_fmt(on['timings_ms'].get(st))}   {_fmt(off['timings_ms'].get(st))}")
-    for label, r in runs.items():
+        print(f"{st:22s} {_fmt(_best(on, st))}   {_fmt(_best(off, st))}")
+    for label, rs in runs.items():
+        r = min(rs, key=lambda x: x["wall_s"])
         lat = r["motion_to_frame_ms"]
         c = r["counters"]
         its = [u["iterations"] for u in r["updates"] if u["kind"] == "content-aware"]
