@@ -20,7 +20,7 @@ from __future__ import annotations
 import json
 import os
 import resource
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -205,9 +205,8 @@ def replay_session(
     frames = _Frames(out_dir, options.all_frames)
     cal = replay.calibration
     display = MemoryDisplay(cal.projector.width, cal.projector.height)
-    rt = Runtime(
-        cal, display, replay.clock, [builtin_item()], options.settings, mask_content_map, frames
-    )
+    settings = replace(options.settings, keep_shown_map=options.score)
+    rt = Runtime(cal, display, replay.clock, [builtin_item()], settings, mask_content_map, frames)
     scorer = None
     spec_raw = scan.attachments.get(schemas.TRUTH_SURFACE_ATTACHMENT)
     if options.score and spec_raw is not None:

@@ -101,10 +101,11 @@ class AppSettings:
     hysteresis_rel: float = 0.004
     depth_timeout_s: float = 0.5
     min_coverage: float = 0.3
-    pose_cache_size: int = 8
+    pose_cache_size: int = 6
     caching: bool = True
     warm_start: bool = True
     map_scale: int = 4
+    keep_shown_map: bool = False  # keep the float map of the frame shown (for scoring)
     orientation_bin_rad: float = 0.03
     depth_bin_m: float = 0.03
     motion: MotionSettings = field(default_factory=MotionSettings)
@@ -517,7 +518,8 @@ class Runtime:
         self.surface = surface
         self._cf = cf
         self._shown_depth = depth
-        self.shown_warp, self.shown_map, self._maps = warp, map_xy, maps
+        self.shown_warp, self._maps = warp, maps
+        self.shown_map = map_xy if self.settings.keep_shown_map else None
         self._render(reason, kind)
         elapsed = time.perf_counter() - t0
         if refine:
