@@ -99,6 +99,7 @@ class AppSettings:
     moving_interval_s: float = 0.1
     still_interval_s: float = 0.2
     hysteresis_rel: float = 0.004
+    refine_at_frames: tuple[int, ...] = (3, 6, 12)
     depth_timeout_s: float = 0.5
     min_coverage: float = 0.3
     pose_cache_size: int = 6
@@ -215,6 +216,7 @@ class Runtime:
         self._cf: CachedWarp | None = None
         self._shown_depth: NDArray[np.float64] | None = None
         self._refine_pending = False
+        self._shown_frames = 0
         self._captured = 0
         self._capture_ns = 0
         self._last_depth_ns: int | None = None
@@ -404,8 +406,13 @@ class Runtime:
             self._refine_pending = True
             return
         cur = self.filter.update(est, still=True)
-        if self._refine_pending or self._changed(cur.surface):
-            self._update(cur.surface, refine=True, reason="settled", t_start=t_start)
+        # the average gets better the longer the hand holds still: refine again a few
+        # times as it does (not at every frame), otherwise only on a real change
+        better = cur.frames in s.refine_at_frames and cur.frames > self._shown_frames
+        if self._refine_pending or better or self._changed(cur.surface):
+            reason = "settled" if self._refine_pending else "averaged" if better else "changed"
+            self._update(cur.surface, refine=True, reason=reason, t_start=t_start)
+            self._shown_frames = cur.frames
             self._refine_pending = False
 
     def _depth_problem(self, frame: DepthFrame, coverage: float) -> None:
@@ -457,6 +464,7 @@ class Runtime:
         self._set_state(State.PROJECTING)
         self._refine_pending = self.motion.moving
         self._update(cur.surface, refine=True, reason="capture", t_start=t_start)
+        self._shown_frames = cur.frames
 
     def _reshow(self, reason: str) -> None:
         if self.state == State.PROJECTING and self.surface is not None:
