@@ -56,6 +56,7 @@ STAGES = [
     "content_aware",
     "map",
     "render",
+    "show",
     "cache_hit",
     "update_content-free",
     "update_content-aware",

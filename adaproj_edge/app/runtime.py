@@ -561,7 +561,8 @@ class Runtime:
             frame = render_frame(self.item.image, self._maps)
             if frame.ndim == 2:
                 frame = np.asarray(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR), np.uint8)
-            self._good = frame
+        self._good = frame
+        with self.pipeline.timer("show"):
             self._show(frame, {"reason": reason, "kind": kind})
 
     def _redraw(self) -> None:
