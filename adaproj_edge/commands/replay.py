@@ -6,12 +6,16 @@ import argparse
 import json
 import logging
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 from adaproj_edge.app.replay import ReplayOptions, replay_session
 from adaproj_edge.app.runtime import AppSettings
 
 log = logging.getLogger(__name__)
+
+# the built-in default: a committed recording (a hand-held device in front of a column)
+DEFAULT_SESSION = Path(__file__).resolve().parents[2] / "tests/fixtures/sessions/cylinder.mcap"
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -25,7 +29,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "motion-to-frame latency, distortion against the ground truth when the session "
         "has one) and contact_sheet.png.",
     )
-    p.add_argument("session", help="session file (.mcap)")
+    p.add_argument(
+        "session",
+        nargs="?",
+        default=str(DEFAULT_SESSION),
+        help="session file (.mcap); default: the committed cylinder recording",
+    )
     p.add_argument("--out", default=None, help="output directory (default: none written)")
     p.add_argument("--all-frames", action="store_true", help="write every projected frame")
     p.add_argument("--no-cache", action="store_true", help="turn the per-pose warp cache off")
