@@ -28,7 +28,7 @@ from adaproj_edge.geometry.projector import FloatArray, Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.frame import RemapMaps
 from adaproj_edge.render.maps import map_from_warp
-from adaproj_edge.warp.engine import FAST, WarpSettings, _make_warp, refine, standard_warp
+from adaproj_edge.warp.engine import FAST, WarpSettings, make_warp, refine, standard_warp
 from adaproj_edge.warp.mesh import Grid, Warp
 from adaproj_edge.warp.meshgeom import MeshGeometry, WarpCache
 from adaproj_edge.warp.placement import Placement, place
@@ -153,7 +153,7 @@ class WarpPipeline:
             v_conf = FAST.conformal(mesh)
             v, _ = FAST.content_free(mesh, v_conf, settings.lam)
             placement = place(mesh, v, content_size, settings.up)
-            warp = _make_warp(mesh, v, placement, surface, content_size, settings, 0, 0.0, {})
+            warp = make_warp(mesh, v, placement, surface, content_size, settings, 0, 0.0, {})
         _, maps = self.maps(warp)
         depth = surface.points[..., 2].astype(np.float64)
         return CachedWarp(warp, maps, depth, v, placement, mesh.verts.copy())
@@ -187,7 +187,7 @@ class WarpPipeline:
                 v, _ = FAST.content_free(mesh, FAST.conformal(mesh), settings.lam)
                 placement = place(mesh, v, content_map.content_size, settings.up)
             v, placement, its, frac = refine(mesh, v, placement, content_map, settings, FAST)
-            warp = _make_warp(
+            warp = make_warp(
                 mesh, v, placement, surface, content_map.content_size, settings, its, frac, {}
             )
             self.iterations.append(its)

@@ -176,7 +176,7 @@ def compute_warp(
     else:
         placement = place(mesh, v, content_size, settings.up)
     timings["total"] = time.perf_counter() - t0
-    return _make_warp(
+    return make_warp(
         mesh, v, placement, surface, content_size, settings, iterations, salient_fraction, timings
     )
 
@@ -262,7 +262,7 @@ def _orientation_ok(mesh: MeshGeometry, v: FloatArray) -> bool:
     return bool(np.all(cross > 0))
 
 
-def _make_warp(
+def make_warp(
     mesh: MeshGeometry,
     v: FloatArray,
     placement: Placement,
@@ -273,6 +273,9 @@ def _make_warp(
     salient_fraction: float,
     timings: dict[str, Any],
 ) -> Warp:
+    """A Warp from solved positions ``v`` (n, 2) of ``mesh`` and their placement; raises
+    :class:`WarpError` if the mesh folds over. For callers that run the solves
+    themselves (the device runtime keeps solver state between updates)."""
     if not _orientation_ok(mesh, v):
         raise WarpError("the warp folds over; the surface is too irregular for this grid")
     rows, cols = settings.grid.rows + 1, settings.grid.cols + 1
