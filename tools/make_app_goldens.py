@@ -3,22 +3,39 @@
 
     .venv/bin/python tools/make_app_goldens.py            # goldens of every session
     .venv/bin/python tools/make_app_goldens.py --session  # first the fault session
+    .venv/bin/python tools/make_app_goldens.py --push     # first the push session
+    .venv/bin/python tools/make_app_goldens.py --only push  # only these sessions' goldens
 
 The fault session (``faults.mcap``) is a simulated cylinder session with faults put
 in: depth dropouts, a hole, a camera that stops sending for 0.6 s, a surface out of
-range, and (in its metadata, raised by the replay) IMU read errors. Everything is
-seeded, so the same command gives the same files. The tests never write these.
+range, and (in its metadata, raised by the replay) IMU read errors.
+
+The push session (``push.mcap``) is a simulated session in which a host pushes new
+content over the serial link while the device projects: the real host code (the
+``smpclient`` client with its serial framing, ``link.client.upload`` and
+``ActivateWrite``, as ``adaproj push --activate`` runs them) talks to the device's
+SMP server through an in-memory line; every request's bytes are stored as
+``/serial/rx`` and every reply as ``/serial/tx``, at virtual times from ``PUSH_AT_S``
+(1 MB/s on the line). The pushed file's name, size and SHA-256 are in the session
+metadata (key ``push``).
+
+Everything is seeded, so the same command gives the same files. The tests never
+write these.
 """
 
 from __future__ import annotations
 
 import argparse
+import asyncio
+import hashlib
 import json
 import os
 import sys
+import tempfile
 from dataclasses import replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -27,10 +44,21 @@ sys.path.insert(0, str(ROOT))
 from adaproj_edge.app.replay import FAULTS_KEY, ReplayOptions, replay_session  # noqa: E402
 from adaproj_edge.geometry.calibration import Calibration  # noqa: E402
 from adaproj_edge.hal.depth import DepthFrame  # noqa: E402
+from adaproj_edge.link.device import StandaloneDevice  # noqa: E402
+from adaproj_edge.link.framing import FrameDecoder, encode_frame  # noqa: E402
+from adaproj_edge.link.server import Server  # noqa: E402
+from adaproj_edge.link.store import ContentStore  # noqa: E402
 from adaproj_edge.session import schemas  # noqa: E402
+from adaproj_edge.session.records import SerialTraffic  # noqa: E402
 from adaproj_edge.session.simulator import T0_NS, Scene, SimulationSettings, simulate  # noqa: E402
 from adaproj_edge.session.writer import SessionWriter  # noqa: E402
-from tests.app.golden import FAULTS_SESSION, GOLDEN, golden_view, session_paths  # noqa: E402
+from tests.app.golden import (  # noqa: E402
+    FAULTS_SESSION,
+    GOLDEN,
+    PUSH_SESSION,
+    golden_view,
+    session_paths,
+)
 
 # (kind, start s, end s) from the start of the session
 DEPTH_FAULTS = [
@@ -88,9 +116,149 @@ def make_fault_session() -> None:
     print(f"wrote {FAULTS_SESSION} ({FAULTS_SESSION.stat().st_size} bytes)")
 
 
-def make_goldens() -> None:
-    out = {}
-    for name, path in session_paths().items():
+PUSH_AT_S = 2.0
+PUSH_NAME = "pushed.png"
+LINE_NS_PER_BYTE = 1_000  # 1 MB/s
+TURNAROUND_NS = 1_000_000
+
+
+def push_image() -> bytes:
+    """The pushed content: a blue field, a yellow disc, a noisy band (two upload chunks)."""
+    rng = np.random.default_rng(5)
+    img = np.zeros((150, 240, 3), np.uint8)
+    img[:] = (200, 60, 20)
+    cv2.circle(img, (120, 60), 45, (0, 220, 255), thickness=-1)
+    img[90:, :] = rng.integers(0, 256, (60, 240, 3), dtype=np.uint8)
+    ok, enc = cv2.imencode(".png", img)
+    assert ok
+    return bytes(enc.tobytes())
+
+
+class _Line:
+    """The USB serial line in memory, shaped as the pyserial object smpclient's serial
+    transport writes to and reads from; the device's server answers on the other end.
+    Each request's bytes (rx) and its reply (tx) are kept with virtual times."""
+
+    port = "memory"
+    out_waiting = 0
+
+    def __init__(self, server: Server, t_ns: int) -> None:
+        self.server = server
+        self.decoder = FrameDecoder(server.max_message)
+        self.t_ns = t_ns
+        self.records: list[SerialTraffic] = []
+        self._request = bytearray()
+        self._reply = bytearray()
+
+    def open(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+    def reset_input_buffer(self) -> None:
+        pass
+
+    def write(self, data: bytes) -> int:
+        self._request += data
+        for message in self.decoder.feed(bytes(data)):
+            rx = bytes(self._request)
+            self._request.clear()
+            self.t_ns += len(rx) * LINE_NS_PER_BYTE + TURNAROUND_NS
+            self.records.append(SerialTraffic(self.t_ns, "rx", rx))
+            reply = self.server.handle(message)
+            if reply is not None:
+                tx = encode_frame(reply)
+                self.t_ns += len(tx) * LINE_NS_PER_BYTE + TURNAROUND_NS
+                self.records.append(SerialTraffic(self.t_ns, "tx", tx))
+                self._reply += tx
+        return len(data)
+
+    def read_all(self) -> bytes:
+        data = bytes(self._reply)
+        self._reply.clear()
+        return data
+
+
+def push_traffic(data: bytes, name: str, t_ns: int) -> list[SerialTraffic]:
+    """The serial traffic of ``adaproj push IMAGE --activate`` starting at ``t_ns``."""
+    from smpclient import SMPClient
+    from smpclient.transport.serial import SMPSerialTransport
+
+    from adaproj_edge.link import client
+
+    class MemoryTransport(SMPSerialTransport):
+        async def connect(self, address: str, timeout_s: float) -> None:
+            self._reset_state()
+
+    with tempfile.TemporaryDirectory() as tmp:
+        cal = Calibration.default()
+        server = Server(
+            ContentStore(Path(tmp) / "store"),
+            StandaloneDevice(cal.projector.width, cal.projector.height),
+        )
+        line = _Line(server, t_ns)
+        transport = MemoryTransport()
+        transport._conn = line  # type: ignore[misc]
+
+        async def go() -> None:
+            c = SMPClient(transport, "memory", timeout_s=5.0)
+            await c.connect()
+            await client.upload(c, data, name)
+            await client.call(c, client.ActivateWrite(image=name))
+            await c.disconnect()
+
+        asyncio.run(go())
+        assert (Path(tmp) / "store" / name).read_bytes() == data
+    return line.records
+
+
+def make_push_session() -> None:
+    scene = Scene.load("cylinder-convex")
+    cal = Calibration.default()
+    settings = SimulationSettings(seconds=3.5, depth_fps=5.0, seed=31, presses=(0.2,))
+    recs = simulate(scene, cal, settings)
+    data = push_image()
+    traffic = push_traffic(data, PUSH_NAME, T0_NS + int(PUSH_AT_S * 1e9))
+    push = {
+        "name": PUSH_NAME,
+        "bytes": len(data),
+        "sha256": hashlib.sha256(data).hexdigest(),
+        "t_s": PUSH_AT_S,
+    }
+    meta = {
+        "source": "simulator",
+        "surface": json.dumps(scene.spec),
+        "seed": str(settings.seed),
+        "seconds": str(settings.seconds),
+        "push": json.dumps(push),
+    }
+    merged = sorted([*recs, *traffic], key=lambda r: r.receive_ns)
+    PUSH_SESSION.parent.mkdir(parents=True, exist_ok=True)
+    tmp = PUSH_SESSION.with_name(PUSH_SESSION.name + ".part")
+    with SessionWriter(tmp, cal, meta, T0_NS) as w:
+        w.attach_json(schemas.TRUTH_SURFACE_ATTACHMENT, scene.spec, T0_NS)
+        for r in merged:
+            w.write(r)
+    os.replace(tmp, PUSH_SESSION)
+    n_rx = sum(1 for t in traffic if t.direction == "rx")
+    print(
+        f"wrote {PUSH_SESSION} ({PUSH_SESSION.stat().st_size} bytes; {len(data)}-byte PNG "
+        f"pushed in {n_rx} requests at {PUSH_AT_S} s)"
+    )
+
+
+def make_goldens(only: list[str] | None = None) -> None:
+    """Replay the sessions and write their goldens; ``only``: just these, the others'
+    entries are kept as they are."""
+    paths = session_paths()
+    unknown = set(only or ()) - set(paths)
+    if unknown:
+        raise SystemExit(f"no session {sorted(unknown)}; sessions: {', '.join(paths)}")
+    out = json.loads(GOLDEN.read_text()) if only and GOLDEN.exists() else {}
+    for name, path in paths.items():
+        if only and name not in only:
+            continue
         s = replay_session(path, None, ReplayOptions(score=False))
         out[name] = golden_view(s)
         print(f"{name}: {s['counters']}")
@@ -103,11 +271,17 @@ def main() -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--session", action="store_true", help="regenerate faults.mcap first")
+    ap.add_argument("--push", action="store_true", help="regenerate push.mcap first")
+    ap.add_argument(
+        "--only", nargs="+", metavar="NAME", help="rewrite only these sessions' goldens"
+    )
     args = ap.parse_args()
     np.seterr(all="ignore")
     if args.session or not FAULTS_SESSION.exists():
         make_fault_session()
-    make_goldens()
+    if args.push or not PUSH_SESSION.exists():
+        make_push_session()
+    make_goldens(args.only)
     return 0
 
 

@@ -13,13 +13,25 @@ seconds from the first record); the replay raises them at the device boundary.
 With the session's ground truth (simulated sessions) each content-aware frame is
 scored: the distortion of the displayed map on the true surface at the true pose of
 that moment, next to the distortion of the warp computed from the true surface.
+
+Serial traffic (``/serial/rx``, ``/serial/tx``) goes through the device's own SMP
+:class:`~adaproj_edge.link.server.Server`, with the runtime as its content sink and a
+content store of its own (``OUT/store``, or a temporary directory): each recorded
+``rx`` chunk is decoded and answered at its recorded time, on the replay's thread, so
+a content push recorded mid-session switches the content at the same point. What the
+server answers is compared, reply by reply, with the recorded ``tx``; a difference is
+counted in the summary (``link``), not an error. Bad bytes are logged and dropped, as
+on the device.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import os
 import resource
+import shutil
+import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -37,17 +49,24 @@ from adaproj_edge.hal.button import ButtonEvent
 from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.display import MemoryDisplay
 from adaproj_edge.hal.imu import ImuSample
+from adaproj_edge.link.framing import FrameDecoder
+from adaproj_edge.link.message import parse_header
+from adaproj_edge.link.server import Server
+from adaproj_edge.link.store import ContentStore
 from adaproj_edge.render.sheet import row, stack
 from adaproj_edge.session import schemas
 from adaproj_edge.session.reader import Scan, iter_records
-from adaproj_edge.session.records import TruthPose
+from adaproj_edge.session.records import SerialTraffic, TruthPose
 from adaproj_edge.session.replay import Replay
 from adaproj_edge.session.simulator import Scene, scene_of_session, true_surface
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.quality import measure
 
+log = logging.getLogger(__name__)
+
 FAULTS_KEY = "app_faults"
 SAMPLE_FRAMES = 12
+LISTED_MISMATCHES = 10
 
 
 @dataclass(frozen=True)
@@ -184,13 +203,89 @@ class _Scorer:
         )
 
 
+class _Link:
+    """The device's SMP server on the recorded serial bytes, driven from the replay loop.
+
+    The server (and its store) is made at the first ``rx`` chunk, so a session
+    without serial traffic leaves no store behind.
+    """
+
+    def __init__(self, store_root: Path, runtime: Runtime) -> None:
+        self.store_root = store_root
+        self.rt = runtime
+        self.server: Server | None = None
+        self.decoder: FrameDecoder | None = None
+        self.recorded = FrameDecoder(0xFFFF - 2)
+        self.replies: list[tuple[int, bytes]] = []
+        self.recorded_replies: list[bytes] = []
+        self.rx_bytes = 0
+        self.tx_bytes = 0
+
+    def _open(self) -> tuple[Server, FrameDecoder]:
+        if self.server is None or self.decoder is None:
+            self.server = Server(ContentStore(self.store_root), self.rt)
+            self.server.on_reset = self.server.restore_active
+            self.decoder = FrameDecoder(self.server.max_message)
+        return self.server, self.decoder
+
+    def feed(self, rec: SerialTraffic) -> None:
+        if rec.direction == "tx":
+            self.tx_bytes += len(rec.data)
+            self.recorded_replies.extend(self.recorded.feed(rec.data))
+            return
+        if rec.direction != "rx":
+            log.warning("ignored serial bytes with direction %r", rec.direction)
+            return
+        self.rx_bytes += len(rec.data)
+        server, decoder = self._open()
+        for message in decoder.feed(rec.data):
+            reply = server.handle(message)
+            if reply is not None:
+                self.replies.append((rec.receive_ns, reply))
+            if server.after_reply is not None:
+                server.after_reply()
+
+    def summary(self, t0: int) -> dict[str, Any]:
+        got = self.replies
+        want = self.recorded_replies
+        mismatches: list[dict[str, Any]] = []
+        n_bad = abs(len(got) - len(want))
+        for i, ((t_ns, reply), recorded) in enumerate(zip(got, want, strict=False)):
+            if reply == recorded:
+                continue
+            n_bad += 1
+            if len(mismatches) < LISTED_MISMATCHES:
+                _, _, _, _, group, seq, cmd = parse_header(reply)
+                mismatches.append(
+                    {"reply": i, "t_s": _rel(t_ns, t0), "group": group, "command": cmd, "seq": seq}
+                )
+        counters = dict(self.server.counters) if self.server is not None else {}
+        dropped = dict(self.decoder.stats.dropped) if self.decoder is not None else {}
+        return {
+            "rx_bytes": self.rx_bytes,
+            "tx_bytes": self.tx_bytes,
+            "requests": counters.get("requests", 0),
+            "refused": counters.get("errors", 0),
+            "ignored": counters.get("ignored", 0),
+            "dropped_frames": dropped,
+            "content_activations": sum(
+                1 for e in self.rt.events if e["event"] == "content" and e.get("source") == "link"
+            ),
+            "replies": len(got),
+            "recorded_replies": len(want),
+            "tx_mismatches": n_bad,
+            "mismatched": mismatches,
+        }
+
+
 def replay_session(
     path: str | os.PathLike[str],
     out: str | os.PathLike[str] | None = None,
     options: ReplayOptions | None = None,
 ) -> dict[str, Any]:
     """Replay ``path`` through the runtime; write frames, summary and contact sheet to
-    ``out`` (when given); return the summary."""
+    ``out`` (when given; the link's content store goes to ``out/store``, emptied
+    first); return the summary."""
     options = options or ReplayOptions()
     pin_mmap_threshold()
     path = Path(path)
@@ -202,11 +297,30 @@ def replay_session(
     out_dir = Path(out) if out is not None else None
     if out_dir is not None:
         (out_dir / "frames").mkdir(parents=True, exist_ok=True)
+        shutil.rmtree(out_dir / "store", ignore_errors=True)
+    with tempfile.TemporaryDirectory(prefix="adaproj-replay-") as tmp:
+        store = out_dir / "store" if out_dir is not None else Path(tmp) / "store"
+        summary, frames = _replay(path, replay, scan, faults, out_dir, store, options)
+    if out_dir is not None:
+        _write(out_dir, summary, frames)
+    return summary
+
+
+def _replay(
+    path: Path,
+    replay: Replay,
+    scan: Scan,
+    faults: list[InjectedFault],
+    out_dir: Path | None,
+    store: Path,
+    options: ReplayOptions,
+) -> tuple[dict[str, Any], _Frames]:
     frames = _Frames(out_dir, options.all_frames)
     cal = replay.calibration
     display = MemoryDisplay(cal.projector.width, cal.projector.height)
     settings = replace(options.settings, keep_shown_map=options.score)
     rt = Runtime(cal, display, replay.clock, [builtin_item()], settings, mask_content_map, frames)
+    link = _Link(store, rt)
     scorer = None
     spec_raw = scan.attachments.get(schemas.TRUTH_SURFACE_ATTACHMENT)
     if options.score and spec_raw is not None:
@@ -242,6 +356,8 @@ def replay_session(
             rt.on_button(rec)
         elif isinstance(rec, TruthPose):
             pose = rec
+        elif isinstance(rec, SerialTraffic):
+            link.feed(rec)
         if n_records % 200 == 0:
             rss.append(round(rss_mb(), 1))
     if t0 is None:
@@ -249,9 +365,10 @@ def replay_session(
     rt.tick()
     rss.append(round(rss_mb(), 1))
     summary = _summary(path, rt, frames, faults, scorer, rss, t0)
-    if out_dir is not None:
-        _write(out_dir, summary, frames)
-    return summary
+    summary["link"] = link.summary(t0)
+    if summary["link"]["rx_bytes"]:
+        log.info("link: %s", {k: v for k, v in summary["link"].items() if k != "mismatched"})
+    return summary, frames
 
 
 def _rel(t_ns: int, t0: int) -> float:

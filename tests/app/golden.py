@@ -15,6 +15,7 @@ SESSIONS = FIXTURES / "sessions"
 APP = FIXTURES / "app"
 GOLDEN = APP / "golden.json"
 FAULTS_SESSION = APP / "faults.mcap"
+PUSH_SESSION = APP / "push.mcap"
 COUNTERS = (
     "content_free",
     "content_aware",
@@ -24,6 +25,7 @@ COUNTERS = (
     "skipped_frames",
     "frames_shown",
 )
+LINK = ("requests", "refused", "ignored", "content_activations", "replies", "tx_mismatches")
 PROBE_TOL_PX = 0.5
 ITERATION_TOL = 1
 MEAN_TOL = 1.0
@@ -33,6 +35,7 @@ def session_paths() -> dict[str, Path]:
     """Every committed session the app is replayed on."""
     out = {p.stem: p for p in sorted(SESSIONS.glob("*.mcap"))}
     out["faults"] = FAULTS_SESSION
+    out["push"] = PUSH_SESSION
     return out
 
 
@@ -48,6 +51,7 @@ def golden_view(summary: dict[str, Any]) -> dict[str, Any]:
         "frames": [
             {k: f[k] for k in ("t_s", "kind", "faults", "mean_bgr")} for f in summary["frames"]
         ],
+        "link": {k: summary["link"][k] for k in LINK},
     }
 
 
@@ -57,6 +61,8 @@ def differences(got: dict[str, Any], want: dict[str, Any]) -> list[str]:
     for key in ("states", "events", "counters"):
         if got[key] != want[key]:
             out.append(f"{key}: {got[key]} != {want[key]}")
+    if "link" in want and got["link"] != want["link"]:  # goldens older than the link replay
+        out.append(f"link: {got['link']} != {want['link']}")
     if len(got["updates"]) != len(want["updates"]):
         out.append(f"updates: {len(got['updates'])} != {len(want['updates'])}")
     for i, (g, w) in enumerate(zip(got["updates"], want["updates"], strict=False)):
