@@ -3,6 +3,10 @@ runtime on the main thread, the SMP server on a thread of its own.
 
 A device that fails is reported to the runtime (status mark) and opened again every
 ``retry_s``; the projector keeps the last good frame meanwhile.
+
+With a :class:`~adaproj_edge.session.recorder.SessionTap` (``adaproj run --record``)
+every input handed to the runtime and the link's traffic are recorded into one
+session, which ``adaproj replay`` plays back through the same runtime and server.
 """
 
 from __future__ import annotations
@@ -26,13 +30,17 @@ from adaproj_edge.hal.depth import DepthFrame, OakDepthCamera
 from adaproj_edge.hal.display import FramebufferDisplay
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
-from adaproj_edge.hal.serial import PySerialPort
+from adaproj_edge.hal.serial import PySerialPort, SerialPort
 from adaproj_edge.link.server import Server, serve
 from adaproj_edge.link.store import ContentStore
+from adaproj_edge.session.recorder import SessionTap
+from adaproj_edge.session.writer import SessionWriter
 
 log = logging.getLogger(__name__)
 
 Reader = Callable[[], Any]
+RECORDED = ("depth", "imu", "button")
+"""Input kinds a session holds as records."""
 
 
 @dataclass
@@ -81,14 +89,75 @@ def dispatch(runtime: Runtime, kind: str, item: Any) -> None:
         log.error("button: %s", item)
 
 
+@dataclass
+class Device:
+    """What :func:`run_loop` runs: the runtime, the link (server and port, ``None``
+    without a link), the input sources, and optionally a session being recorded."""
+
+    runtime: Runtime
+    server: Server
+    port: SerialPort | None
+    sources: list[_Source]
+    clock: Clock
+    tap: SessionTap | None = None
+
+
+def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float = 1.0) -> None:
+    """Boot, start a thread per source and one for the link, and feed the runtime on
+    this thread until ``stop`` is set (or an interrupt); the recording is closed last."""
+    stop = stop or threading.Event()
+    runtime, server, tap = device.runtime, device.server, device.tap
+    inputs: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=256)
+    threads = [
+        threading.Thread(
+            target=_pump,
+            args=(src, inputs, stop, device.clock, retry_s),
+            daemon=True,
+            name=src.name,
+        )
+        for src in device.sources
+    ]
+    link = None
+    if device.port is not None:
+        port = tap.port(device.port) if tap is not None else device.port
+        link = threading.Thread(target=serve, args=(port, server, stop), daemon=True, name="link")
+        threads.append(link)
+    runtime.boot()
+    server.restore_active()
+    if tap is not None:
+        tap.start()
+    for t in threads:
+        t.start()
+    try:
+        while not stop.is_set():
+            try:
+                kind, item = inputs.get(timeout=0.02)
+            except queue.Empty:
+                runtime.tick()
+                continue
+            runtime.tick()
+            if tap is not None and kind in RECORDED:
+                tap.add(item)
+            dispatch(runtime, kind, item)
+    finally:
+        stop.set()
+        if tap is not None:
+            if link is not None:
+                link.join(timeout=1.0)  # its last reply goes into the recording
+            n = tap.close()
+            log.info("recorded %d records to %s", n, tap.writer.path)
+
+
 def run_device(
     board: Board,
     store_dir: Path,
     state_dir: Path | None = None,
     settings: AppSettings | None = None,
     retry_s: float = 1.0,
+    record: Path | None = None,
 ) -> None:
-    """Run the projector until interrupted (Ctrl-C / SIGTERM as KeyboardInterrupt)."""
+    """Run the projector until interrupted (Ctrl-C / SIGTERM as KeyboardInterrupt);
+    with ``record``, record a session of the run (inputs and serial traffic)."""
     pin_mmap_threshold()
     clock = MonotonicClock()
     calibration = board.calibration()
@@ -115,40 +184,24 @@ def run_device(
         button = EvdevButton(board.button_device, board.key_code, clock)
         return lambda: button.read(0.1)
 
-    inputs: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=256)
-    stop = threading.Event()
-    threads = [
-        threading.Thread(
-            target=_pump, args=(src, inputs, stop, clock, retry_s), daemon=True, name=src.name
-        )
-        for src in (
-            _Source("imu", open_imu),
-            _Source("depth", open_depth),
-            _Source("button", open_button),
-        )
+    sources = [
+        _Source("imu", open_imu),
+        _Source("depth", open_depth),
+        _Source("button", open_button),
     ]
     server = Server(ContentStore(store_dir), runtime)
     server.on_reset = server.restore_active
+    port: SerialPort | None = None
     try:
         port = PySerialPort(board.serial_device)
-        threads.append(
-            threading.Thread(target=serve, args=(port, server, stop), daemon=True, name="link")
-        )
     except DeviceError as e:
         log.error("no serial link (%s); running without content updates", e)
-    runtime.boot()
-    server.restore_active()
-    for t in threads:
-        t.start()
+    tap = None
     try:
-        while True:
-            try:
-                kind, item = inputs.get(timeout=0.02)
-            except queue.Empty:
-                runtime.tick()
-                continue
-            runtime.tick()
-            dispatch(runtime, kind, item)
+        if record is not None:
+            meta = {"source": "device", "board": board.name, "command": "run"}
+            tap = SessionTap(SessionWriter(record, calibration, meta, clock.now_ns()), clock)
+            log.info("recording to %s", record)
+        run_loop(Device(runtime, server, port, sources, clock, tap), retry_s=retry_s)
     finally:
-        stop.set()
         display.close()

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 from adaproj_edge.app.live import run_device
@@ -32,13 +34,28 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         default=Path("/var/lib/adaproj/state"),
         help="where the last good warp is kept (shown at the next boot)",
     )
+    p.add_argument(
+        "--record",
+        type=Path,
+        default=None,
+        metavar="FILE.mcap",
+        help="also record a session of the run: depth, IMU, button and the serial link's "
+        "traffic (replay it with `adaproj replay`)",
+    )
     p.set_defaults(run=run)
+
+
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
 
 
 def run(args: argparse.Namespace) -> int:
     board = Board.load(args.board)
+    previous = signal.signal(signal.SIGTERM, _interrupt)  # systemd's stop: close the recording
     try:
-        run_device(board, args.store, args.state)
+        run_device(board, args.store, args.state, record=args.record)
     except KeyboardInterrupt:
         log.info("stopped")
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     return 0
