@@ -60,6 +60,8 @@ STAGES = [
     "cache_hit",
     "update_content-free",
     "update_content-aware",
+    "depth_to_frame_content-free",
+    "depth_to_frame_content-aware",
 ]
 
 

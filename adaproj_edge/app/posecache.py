@@ -18,26 +18,31 @@ from numpy.typing import NDArray
 
 from adaproj_edge.geometry.projector import FloatArray
 from adaproj_edge.render.frame import RemapMaps
+from adaproj_edge.render.maps import PixelWeights
 from adaproj_edge.warp.mesh import Warp
 from adaproj_edge.warp.placement import Placement
 
 Key = tuple[int, ...]
 
 
-@dataclass(frozen=True)
+@dataclass
 class CachedWarp:
     """A content-free warp, its display maps, and what it needs for a warm start.
 
     ``depth`` is the surface's lattice depth (rows, cols) it was computed from, NaN
-    where unknown; ``v``/``placement``/``verts`` the solver's positions for them.
+    where unknown; ``v``/``placement``/``verts`` the solver's positions for them;
+    ``pixels`` the reduced-resolution pixel weights of its mesh (any warp of this mesh
+    maps through them); ``maps`` the renderer's maps of the warp itself, made when it
+    is first shown (a content-aware update shows its own).
     """
 
     warp: Warp
-    maps: RemapMaps
     depth: FloatArray
     v: FloatArray
     placement: Placement
     verts: NDArray[np.intp]
+    pixels: PixelWeights
+    maps: RemapMaps | None = None
 
     def matches(self, depth: FloatArray, max_rel: float, min_overlap: float) -> bool:
         """Whether the current lattice ``depth`` is the surface this warp was made for:

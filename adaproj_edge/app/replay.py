@@ -59,7 +59,7 @@ from adaproj_edge.session.reader import Scan, iter_records
 from adaproj_edge.session.records import SerialTraffic, TruthPose
 from adaproj_edge.session.replay import Replay
 from adaproj_edge.session.simulator import Scene, scene_of_session, true_surface
-from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.engine import WarpSettings, compute_warp
 from adaproj_edge.warp.quality import measure
 
 log = logging.getLogger(__name__)
@@ -183,9 +183,10 @@ class _Scorer:
         settings = WarpSettings(
             mode="content", grid=rt.settings.grid, threshold=item.settings.threshold
         )
-        self.pipeline.last = None
-        cf = self.pipeline.content_free(truth, item.size, settings)
-        _, ref_map, _ = self.pipeline.content_aware(truth, item.content_map, settings, cf)
+        # the engine's warp on the true surface: full grid, full refinement
+        ref_map = self.pipeline.display_map(
+            compute_warp(truth, item.size, item.content_map, settings)
+        )
         salient = item.content_map.full_size() >= item.content_map.threshold
         shown, shown_s = measure(rt.shown_map, truth, salient)
         ref, ref_s = measure(ref_map, truth, salient)

@@ -106,15 +106,22 @@ class AppSettings:
     caching: bool = True
     warm_start: bool = True
     map_scale: int = 4
+    refine_factor: int = 2  # the content-aware grid is this many times coarser
+    refine_iterations: int = 6  # per update; the next refinement goes on from there
     keep_shown_map: bool = False  # keep the float map of the frame shown (for scoring)
     orientation_bin_rad: float = 0.03
     depth_bin_m: float = 0.03
     motion: MotionSettings = field(default_factory=MotionSettings)
     depth: DepthSettings = field(default_factory=DepthSettings)
 
+    surface_oversample: int = 1  # surface lattice nodes per grid cell side
+
     def grid_shape(self) -> tuple[int, int]:
-        """The surface lattice: one node per warp grid vertex."""
-        return self.grid.rows + 1, self.grid.cols + 1
+        """The surface lattice: ``surface_oversample`` nodes per grid cell side, so the
+        mesh sees the surface between its vertices (a wall corner inside a cell is
+        unfolded, not cut)."""
+        k = max(self.surface_oversample, 1)
+        return k * self.grid.rows + 1, k * self.grid.cols + 1
 
 
 @dataclass
@@ -183,7 +190,7 @@ class Runtime:
         self.state_dir = state_dir
         self.motion = MotionTracker(calibration.R_P_I, s.motion)
         self.pipeline = WarpPipeline(
-            calibration.projector, s.grid, s.map_scale, s.warm_start, s.caching
+            calibration.projector, s.grid, s.map_scale, s.warm_start, s.caching, s.refine_factor
         )
         self.pose_cache = PoseCache(s.pose_cache_size if s.caching else 0)
         self.filter = SurfaceFilter()
@@ -272,7 +279,7 @@ class Runtime:
         warp = self._load_last_warp()
         if warp is not None:
             self.shown_warp, self.shown_map = warp, None
-            self._maps = self.pipeline.maps(warp)[1]
+            self._maps = self.pipeline.maps(warp)
             self._render("boot", "last-warp")
         else:
             self._show_plain("boot")
@@ -475,12 +482,18 @@ class Runtime:
     # ------------------------------------------------------------------ warps
     def _warp_settings(self) -> WarpSettings:
         st = self.item.settings
-        return WarpSettings(mode="content", grid=self.settings.grid, threshold=st.threshold)
+        return WarpSettings(
+            mode="content",
+            grid=self.settings.grid,
+            threshold=st.threshold,
+            max_iterations=self.settings.refine_iterations,
+        )
 
     def _update(
         self, surface: Surface, refine: bool, reason: str, t_start: float | None = None
     ) -> None:
-        t0 = t_start if t_start is not None else time.perf_counter()
+        t_update = time.perf_counter()
+        t0 = t_start if t_start is not None else t_update
         item = self.item
         if self.plain or item.settings.mode == "standard":
             self.surface = surface
@@ -511,14 +524,13 @@ class Runtime:
                 self.counters["content_free"] += 1
                 self.pose_cache.put(key, cf)
             self.counters["cache_rejected"] = self.pose_cache.rejected
-            warp, maps, kind, its = cf.warp, cf.maps, "content-free", 0
-            map_xy: NDArray[np.float32] | None = None
             if refine and item.content_map is not None and item.settings.mode == "content":
-                warp, map_xy, maps = self.pipeline.content_aware(
-                    surface, item.content_map, settings, cf
-                )
+                warp, maps = self.pipeline.content_aware(surface, item.content_map, settings, cf)
                 kind, its = "content-aware", int(warp.meta["iterations"])
                 self.counters["content_aware"] += 1
+            else:
+                warp, kind, its = cf.warp, "content-free", 0
+                maps = self.pipeline.content_free_maps(cf)
         except AdaprojError as e:
             self._fault("warp", f"no warp for this surface: {e}")
             return
@@ -527,12 +539,24 @@ class Runtime:
         self._cf = cf
         self._shown_depth = depth
         self.shown_warp, self._maps = warp, maps
-        self.shown_map = map_xy if self.settings.keep_shown_map else None
-        self._render(reason, kind)
-        elapsed = time.perf_counter() - t0
+        frame = self._render(reason, kind, notify=False)
+        t_end = time.perf_counter()
+        elapsed = t_end - t0
+        # the update itself (surface -> frame shown), and with the depth frame's surface
+        # estimate before it (depth frame -> frame shown)
+        self.pipeline.times.add("update_" + kind, t_end - t_update)
+        if t_start is not None:
+            self.pipeline.times.add("depth_to_frame_" + kind, elapsed)
+        # after the update is timed: what only replays and the state directory need
+        if frame is not None:
+            self._notify(frame, reason, kind)
+        self.shown_map = (
+            self.pipeline.display_map(warp)
+            if self.settings.keep_shown_map and kind == "content-aware"
+            else None
+        )
         if refine:
             self._save_last_warp(warp)
-        self.pipeline.times.add("update_" + kind, elapsed)
         if self._motion_ns is not None:
             self.latencies_ms.append((self._now() - self._motion_ns) / 1e6 + elapsed * 1e3)
             self._motion_ns = None
@@ -554,29 +578,39 @@ class Runtime:
         self._render(reason, "plain")
 
     # ------------------------------------------------------------------ display
-    def _render(self, reason: str, kind: str) -> None:
+    def _render(self, reason: str, kind: str, notify: bool = True) -> Image | None:
+        """Draw the current maps and show the frame; returns the frame shown. Without
+        ``notify`` the frame hook is left to the caller (:meth:`_notify`)."""
         if self._maps is None:
-            return
+            return None
         with self.pipeline.timer("render"):
             frame = render_frame(self.item.image, self._maps)
             if frame.ndim == 2:
                 frame = np.asarray(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR), np.uint8)
         self._good = frame
         with self.pipeline.timer("show"):
-            self._show(frame, {"reason": reason, "kind": kind})
+            out = self._show(frame)
+        if notify:
+            self._notify(out, reason, kind)
+        return out
 
     def _redraw(self) -> None:
         good = self._good
         if good is not None:
-            self._show(good, {"reason": "status", "kind": "status"})
+            self._notify(self._show(good), "status", "status")
 
-    def _show(self, frame: Image, info: dict[str, Any]) -> None:
+    def _show(self, frame: Image) -> Image:
         out = draw_status(frame, sorted(self.faults))
         self.display.show(out)
         self.frame = out
         self.counters["frames_shown"] += 1
+        return out
+
+    def _notify(self, frame: Image, reason: str, kind: str) -> None:
+        """Hand the frame shown to the frame hook (replays record it)."""
         if self.on_frame is not None:
-            self.on_frame(self._now(), out, {**info, "faults": sorted(self.faults)})
+            info = {"reason": reason, "kind": kind, "faults": sorted(self.faults)}
+            self.on_frame(self._now(), frame, info)
 
     # ------------------------------------------------------------------ link side
     def activate(self, content: Content) -> None:

@@ -82,7 +82,7 @@ class ContentMap:
         mx = (pts[:, 0] + 0.5) * (mw / w) - 0.5
         my = (pts[:, 1] + 0.5) * (mh / h) - 0.5
         vals = scipy.ndimage.map_coordinates(
-            self.values.astype(np.float64), [my, mx], order=1, mode="nearest"
+            self.values, [my, mx], output=np.float64, order=1, mode="nearest"
         )
         inside = (pts[:, 0] >= -0.5) & (pts[:, 0] <= w - 0.5)
         inside &= (pts[:, 1] >= -0.5) & (pts[:, 1] <= h - 0.5)

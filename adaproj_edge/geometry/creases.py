@@ -111,10 +111,14 @@ def unfold_creases(
         np.add.at(acc, tris[smooth, k], n[smooth] * size[smooth, None] ** 2)
     with np.errstate(invalid="ignore", divide="ignore"):
         vn = acc / np.linalg.norm(acc, axis=1, keepdims=True)
-    for t in np.flatnonzero(rough):
+    # only triangles whose corners' planes differ can hold a crease (checked for all
+    # rough triangles at once; the loop below then handles the few that remain)
+    rough_t = np.flatnonzero(rough)
+    corner_n = vn[tris[rough_t]]  # (R, 3, 3)
+    with np.errstate(invalid="ignore"):
+        differ = np.any(np.einsum("rkj,rj->rk", corner_n, corner_n[:, 0]) < CREASE_COS, axis=1)
+    for t in rough_t[differ & np.all(np.isfinite(corner_n), axis=(1, 2))]:
         normals = vn[tris[t]]
-        if not np.all(np.isfinite(normals)):
-            continue
         group_b = [k for k in range(3) if float(normals[k] @ normals[0]) < CREASE_COS]
         if not group_b:
             continue

@@ -32,6 +32,8 @@ _SHIFT = 4
 _DIRECTIONS = np.array(
     [[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=np.float64
 )
+_SCALES = np.array([1.0, 0.5, 0.25, 0.125])
+_PATTERN = _SCALES[:, None, None] * _DIRECTIONS[None]  # (4, 8, 2)
 
 
 @dataclass(frozen=True)
@@ -136,14 +138,18 @@ def inscribed_rectangle(
     if r <= 0:
         c, step = _raster_start(q, tris, resolution)
         r = float(linf_clearance(c, p0, p1))
+    # pattern search, four step sizes per evaluation (step, step/2, step/4, step/8):
+    # move to the best trial that improves r and carry on at its step size; when none
+    # does, the step shrinks 16-fold
     while step > tol:
-        trial = c + step * _DIRECTIONS
+        trial = (c + step * _PATTERN).reshape(-1, 2)
         rt = linf_clearance(trial, p0, p1)
         k = int(np.argmax(rt))
         if rt[k] > r:
             c, r = trial[k], float(rt[k])
+            step *= _SCALES[k // _DIRECTIONS.shape[0]]
         else:
-            step *= 0.5
+            step *= _SCALES[-1] / 2
     return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
 
 

@@ -47,6 +47,40 @@ def _cells(positions: FloatArray, n_pixels: int) -> tuple[IntArray, FloatArray]:
 
 
 @dataclass(frozen=True)
+class PixelLayout:
+    """Which grid triangle each projector pixel falls in, and its pixel-space barycentric
+    weights there: fixed by the grid and the frame alone, so computed once per grid.
+
+    Attributes
+    ----------
+    tri : (H, W) index of the pixel's triangle (``grid_triangles`` order).
+    corners : (3, H, W) int32 grid vertex indices of the triangle's corners.
+    l0, l1, l2 : (H, W) pixel-space barycentric weights of the corners.
+    """
+
+    tri: IntArray
+    corners: NDArray[np.int32]
+    l0: FloatArray
+    l1: FloatArray
+    l2: FloatArray
+
+    @classmethod
+    def build(cls, grid_uv: FloatArray, projector: Projector) -> PixelLayout:
+        rows, cols = grid_uv.shape[:2]
+        corners = grid_triangles(rows - 1, cols - 1)
+        cx, fx = _cells(grid_uv[0, :, 0], projector.width)
+        cy, fy = _cells(grid_uv[:, 0, 1], projector.height)
+        cxx, cyy = np.meshgrid(cx, cy)
+        fxx, fyy = np.meshgrid(fx, fy)
+        upper = fxx >= fyy  # triangle (a, b, e), else (a, e, d)
+        tri = 2 * (cyy * (cols - 1) + cxx) + (~upper).astype(np.intp)
+        l1 = np.where(upper, fxx - fyy, fxx)
+        l2 = np.where(upper, fyy, fyy - fxx)
+        pixel_corners = np.moveaxis(corners[tri], -1, 0).astype(np.int32)
+        return cls(tri, pixel_corners, 1.0 - l1 - l2, l1, l2)
+
+
+@dataclass(frozen=True)
 class PixelWeights:
     """For every projector pixel: its grid triangle and weights (u, v) on its corners.
 
@@ -69,41 +103,40 @@ class PixelWeights:
         depth: FloatArray | None,
         projector: Projector,
         surface: Surface | None = None,
+        layout: PixelLayout | None = None,
     ) -> PixelWeights:
         """Weights for the grid ``grid_uv`` (R, C, 2) with vertex depths ``depth`` (R, C)
-        (NaN where no surface; None: plain pixel-space interpolation)."""
-        rows, cols = grid_uv.shape[:2]
-        corners = grid_triangles(rows - 1, cols - 1)
-        cx, fx = _cells(grid_uv[0, :, 0], projector.width)
-        cy, fy = _cells(grid_uv[:, 0, 1], projector.height)
-        cxx, cyy = np.meshgrid(cx, cy)
-        fxx, fyy = np.meshgrid(fx, fy)
-        upper = fxx >= fyy  # triangle (a, b, e), else (a, e, d)
-        tri = 2 * (cyy * (cols - 1) + cxx) + (~upper).astype(np.intp)
-        # perspective-correct weights of the triangle's corners (a, b|e, e|d)
-        l1 = np.where(upper, fxx - fyy, fxx)
-        l2 = np.where(upper, fyy, fyy - fxx)
-        l0 = 1.0 - l1 - l2
+        (NaN where no surface; None: plain pixel-space interpolation). ``layout``: the
+        grid's :class:`PixelLayout`, when the caller keeps it."""
+        if layout is None:
+            layout = PixelLayout.build(grid_uv, projector)
+        c0, c1, c2 = layout.corners
         if depth is None:
-            inv_z = np.ones(rows * cols)
+            u, v = layout.l1, layout.l2
         else:
+            # perspective-correct weights of the triangle's corners (a, b|e, e|d)
             inv_z = 1.0 / depth.reshape(-1)  # NaN without surface: the pixel shows black
-        w0 = l0 * inv_z[corners[tri, 0]]
-        w1 = l1 * inv_z[corners[tri, 1]]
-        w2 = l2 * inv_z[corners[tri, 2]]
-        total = w0 + w1 + w2
-        u, v = w1 / total, w2 / total
+            w0 = layout.l0 * inv_z[c0]
+            w1 = layout.l1 * inv_z[c1]
+            w2 = layout.l2 * inv_z[c2]
+            total = w0 + w1 + w2
+            u, v = w1 / total, w2 / total
         if surface is not None and depth is not None:
-            uo, vo = _surface_weights(grid_uv, depth, projector, corners, tri, surface)
+            rows, cols = grid_uv.shape[:2]
+            corners = grid_triangles(rows - 1, cols - 1)
+            uo, vo = _surface_weights(grid_uv, depth, projector, corners, layout.tri, surface)
             use = np.isfinite(uo) & np.isfinite(u)
             u = np.where(use, uo, u)
             v = np.where(use, vo, v)
-        pixel_corners = np.moveaxis(corners[tri], -1, 0).astype(np.int32)
-        return cls(pixel_corners, u.astype(np.float32), v.astype(np.float32))
+        return cls(layout.corners, u.astype(np.float32), v.astype(np.float32))
 
-    def map(self, image_xy: FloatArray, content_size: tuple[int, int]) -> NDArray[np.float32]:
+    def map(
+        self, image_xy: FloatArray, content_size: tuple[int, int], clip: bool = True
+    ) -> NDArray[np.float32]:
         """The (H, W, 2) float32 map for vertex content coordinates ``image_xy`` (R, C, 2);
-        NaN where the pixel shows black (no surface, or outside the content)."""
+        NaN where the pixel shows black: no surface, or (``clip``) outside the content.
+        Without ``clip`` coordinates outside the content are kept (the renderer's
+        border turns them black, with an anti-aliased edge)."""
         verts = np.asarray(image_xy, dtype=np.float32).reshape(-1, 2)
         c0, c1, c2 = self.corners
         out = np.empty((*self.u.shape, 2), dtype=np.float32)
@@ -111,6 +144,8 @@ class PixelWeights:
             vk = verts[:, k]
             p0 = vk[c0]
             out[..., k] = p0 + self.u * (vk[c1] - p0) + self.v * (vk[c2] - p0)
+        if not clip:
+            return out
         w, h = content_size
         with np.errstate(invalid="ignore"):
             outside = (

@@ -160,9 +160,21 @@ class MeshGeometry:
         return self.grid_uv.reshape(-1, 2)[self.verts]
 
     @classmethod
-    def build(cls, surface: Surface, grid: Grid, cache: WarpCache | None = None) -> MeshGeometry:
-        """Sample the surface at the grid and keep its largest connected piece."""
-        grid_uv = grid.vertices(surface.projector)
+    def build(
+        cls,
+        surface: Surface,
+        grid: Grid,
+        cache: WarpCache | None = None,
+        grid_uv: FloatArray | None = None,
+    ) -> MeshGeometry:
+        """Sample the surface at the grid and keep its largest connected piece.
+
+        ``grid_uv`` (rows + 1, cols + 1, 2) places the vertices elsewhere than
+        :meth:`Grid.vertices` (a coarse grid on a subset of a fine grid's vertices)."""
+        if grid_uv is None:
+            grid_uv = grid.vertices(surface.projector)
+        elif grid_uv.shape != (grid.rows + 1, grid.cols + 1, 2):
+            raise ValueError(f"grid_uv {grid_uv.shape} does not fit grid {grid}")
         pts = surface.points_at(grid_uv).reshape(-1, 3)
         all_tris = grid_triangles(grid.rows, grid.cols)
         ok = np.all(np.isfinite(pts[all_tris]).all(axis=2), axis=1)

@@ -99,7 +99,7 @@ def test_motion_starts_at_once_and_settles_with_hysteresis() -> None:
 
 def test_pose_cache_is_bounded_and_checks_the_depth() -> None:
     depth = np.full((21, 21), 1.5)
-    entry = CachedWarp(None, None, depth, None, None, None)  # type: ignore[arg-type]
+    entry = CachedWarp(None, depth, None, None, None, None)  # type: ignore[arg-type]
     cache = PoseCache(2)
     for k in range(3):
         cache.put((k,), entry)
