@@ -31,7 +31,9 @@ Pure: arrays in, arrays out.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, replace
+from typing import Any
 
 import cv2
 import numpy as np
@@ -121,26 +123,138 @@ def depth_sigma(z: FloatArray, calibration: Calibration, disparity_sigma_px: flo
     return z * z / (d.focal * d.baseline_m) * disparity_sigma_px
 
 
+class _Workspace(threading.local):
+    """Per-thread scratch arrays, reused from frame to frame: frame-sized temporaries
+    allocated afresh are returned to the OS after each frame and cost page faults
+    (about as much as the arithmetic on them) when allocated again."""
+
+    def __init__(self) -> None:
+        self.arrays: dict[tuple[str, tuple[int, ...], str], NDArray[Any]] = {}
+
+    def get(self, name: str, shape: tuple[int, ...], dtype: type[Any] = np.float64) -> NDArray[Any]:
+        key = (name, shape, np.dtype(dtype).str)
+        if key not in self.arrays:
+            if len(self.arrays) > 64:  # sizes changed (another frame or lattice size)
+                self.arrays.clear()
+            self.arrays[key] = np.empty(shape, dtype)
+        return self.arrays[key]
+
+
+_WORK = _Workspace()
+
+
+@dataclass(frozen=True)
+class _DepthImages:
+    """The smoothed depth as ray intersection samples it, float32 (h, w) (scratch
+    arrays of :data:`_WORK`: valid until the next frame on this thread).
+
+    ``num`` is smoothed depth x support and ``wgt`` the support where the depth is
+    usable (finite, support >= ``min_support``), 0 elsewhere; ``sup`` the support
+    everywhere; ``mask`` 1 where usable. ``z_usable`` / ``z_any``: median smoothed
+    depth over the usable pixels / over all with a smoothed depth (None if none).
+    """
+
+    num: NDArray[np.float32]
+    wgt: NDArray[np.float32]
+    sup: NDArray[np.float32]
+    mask: NDArray[np.float32]
+    z_usable: float | None
+    z_any: float | None
+
+
+def _median32(values: NDArray[np.float32], where: BoolArray) -> float | None:
+    """``np.median(values[where].astype(np.float64))`` without the float64 copy."""
+    n = int(np.count_nonzero(where))
+    if n == 0:
+        return None
+    pick = _WORK.get("median", values.shape, np.float32).reshape(-1)[:n]
+    np.compress(where.reshape(-1), values.reshape(-1), out=pick)
+    h = n // 2
+    if n % 2:
+        pick.partition(h)
+        return float(pick[h])
+    pick.partition([h - 1, h])
+    return (float(pick[h - 1]) + float(pick[h])) / 2
+
+
+def _clean(
+    z: FloatArray, settings: DepthSettings, positive: bool
+) -> tuple[BoolArray, NDArray[np.float32]]:
+    """Mask of the pixels :func:`clean_depth` keeps (and, if ``positive``, z > 0), and
+    the float32 depth where in range, 0 elsewhere (scratch)."""
+    shape = z.shape
+    ok = _WORK.get("ok", shape, np.bool_)
+    tmp = _WORK.get("tmp", shape, np.bool_)
+    with np.errstate(invalid="ignore"):
+        np.greater_equal(z, settings.min_depth_m, out=ok)
+        ok &= np.less_equal(z, settings.max_depth_m, out=tmp)
+        if positive:
+            ok &= np.greater(z, 0.0, out=tmp)
+        z32 = _WORK.get("z32", shape, np.float32)
+        z32.fill(0.0)
+        np.copyto(z32, z, casting="same_kind", where=ok)
+        med = _WORK.get("med", shape, np.float32)
+        cv2.medianBlur(z32, 5, dst=med)
+        # speckle, in float64 as before: drop |z - median| > speckle_rel z
+        dev = np.subtract(z, med, out=_WORK.get("dev", shape, np.float64))
+        np.abs(dev, out=dev)
+        lim = np.multiply(z, settings.speckle_rel, out=_WORK.get("lim", shape, np.float64))
+        ok &= np.less_equal(dev, lim, out=tmp)
+    return ok, z32
+
+
+def _smooth(
+    ok: BoolArray, z32: NDArray[np.float32], sigma_px: float
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """:func:`smooth_depth` of ``z32`` where ``ok`` in float32 scratch: (zs, support)."""
+    shape = ok.shape
+    m = _WORK.get("m", shape, np.float32)
+    np.copyto(m, ok)
+    zz = np.multiply(z32, m, out=_WORK.get("zz", shape, np.float32))
+    num = _WORK.get("num", shape, np.float32)
+    den = _WORK.get("den", shape, np.float32)
+    cv2.GaussianBlur(zz, (0, 0), sigma_px, dst=num, borderType=cv2.BORDER_CONSTANT)
+    cv2.GaussianBlur(m, (0, 0), sigma_px, dst=den, borderType=cv2.BORDER_CONSTANT)
+    zs = _WORK.get("zs", shape, np.float32)
+    zs.fill(np.nan)
+    has = np.greater(den, np.float32(1e-3), out=_WORK.get("has", shape, np.bool_))
+    np.divide(num, den, out=zs, where=has)
+    return zs, den
+
+
+def _images(
+    zs: NDArray[np.float32], support: NDArray[np.float32], settings: DepthSettings
+) -> _DepthImages:
+    """The images :func:`intersect_rays` samples, from :func:`_smooth` (float32)."""
+    shape = zs.shape
+    known = np.isfinite(zs, out=_WORK.get("known", shape, np.bool_))
+    usable = np.greater_equal(
+        support, np.float64(settings.min_support), out=_WORK.get("usable", shape, np.bool_)
+    )
+    usable &= known
+    num = _WORK.get("inum", shape, np.float32)
+    num.fill(0.0)
+    # float32(zs * support) as in float64: a product of two float32 is exact in float64
+    np.multiply(zs, support, out=num, where=usable)
+    wgt = _WORK.get("wgt", shape, np.float32)
+    wgt.fill(0.0)
+    np.copyto(wgt, support, where=usable)
+    mask = _WORK.get("mask", shape, np.float32)
+    np.copyto(mask, usable)
+    return _DepthImages(num, wgt, support, mask, _median32(zs, usable), _median32(zs, known))
+
+
 def clean_depth(depth_m: FloatArray, settings: DepthSettings) -> FloatArray:
     """Range check and speckle rejection; (h, w) metres with NaN where invalid."""
-    z = np.asarray(depth_m, dtype=np.float64).copy()
-    with np.errstate(invalid="ignore"):
-        z[~((z >= settings.min_depth_m) & (z <= settings.max_depth_m))] = np.nan
-    z32 = np.nan_to_num(z, nan=0.0).astype(np.float32)
-    med = cv2.medianBlur(z32, 5).astype(np.float64)
-    with np.errstate(invalid="ignore"):
-        z[np.abs(z - med) > settings.speckle_rel * z] = np.nan
-    return z
+    z = np.asarray(depth_m, dtype=np.float64)
+    return np.where(_clean(z, settings, positive=False)[0], z, np.nan)
 
 
 def smooth_depth(z: FloatArray, sigma_px: float) -> tuple[FloatArray, FloatArray]:
     """Normalised-convolution smoothing: (smoothed z, support), both (h, w)."""
-    m = np.isfinite(z).astype(np.float32)
-    zz = np.where(m > 0, z, 0.0).astype(np.float32)
-    num = cv2.GaussianBlur(zz, (0, 0), sigma_px, borderType=cv2.BORDER_CONSTANT)
-    den = cv2.GaussianBlur(m, (0, 0), sigma_px, borderType=cv2.BORDER_CONSTANT)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        zs = np.where(den > 1e-3, num / den, np.nan)
+    ok = np.isfinite(z)
+    z32 = np.where(ok, z, 0.0).astype(np.float32)
+    zs, den = _smooth(ok, z32, sigma_px)
     return zs.astype(np.float64), den.astype(np.float64)
 
 
@@ -162,17 +276,30 @@ def intersect_rays(
     """Ray parameter ``s`` (...,) where rays ``s * dirs_p`` (..., 3) in frame P meet the
     smoothed depth surface ``zs`` (h, w), and the support there; NaN where they do not.
     """
+    valid = np.isfinite(zs) & (support >= settings.min_support)
+    good = zs[valid]
+    images = _DepthImages(
+        np.where(valid, zs * support, 0.0).astype(np.float32),
+        np.where(valid, support, 0.0).astype(np.float32),
+        support.astype(np.float32),
+        valid.astype(np.float32),
+        float(np.median(good)) if good.size else None,
+        None,
+    )
+    return _intersect(dirs_p, images, calibration, settings)
+
+
+def _intersect(
+    dirs_p: FloatArray, images: _DepthImages, calibration: Calibration, settings: DepthSettings
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`intersect_rays` on the sampled images."""
     T = calibration.T_P_D
     R, t = T[:3, :3], T[:3, 3]
     a = dirs_p @ R  # R^T d: ray direction in D
     b = -R.T @ t  # projector centre in D
     K = calibration.depth.K
-    valid = np.isfinite(zs) & (support >= settings.min_support)
-    num = np.where(valid, zs * support, 0.0).astype(np.float32)
-    wgt = np.where(valid, support, 0.0).astype(np.float32)
-    sup = support.astype(np.float32)
-    good = zs[valid]
-    s = np.full(dirs_p.shape[:-1], float(np.median(good)) if good.size else 1.0)
+    num, wgt = images.num, images.wgt
+    s = np.full(dirs_p.shape[:-1], images.z_usable if images.z_usable is not None else 1.0)
     z_meas = np.full_like(s, np.nan)
     for _ in range(settings.iterations):
         x = s[..., None] * a + b
@@ -188,8 +315,8 @@ def intersect_rays(
     with np.errstate(invalid="ignore", divide="ignore"):
         uv = (x @ K.T)[..., :2] / x[..., 2:3]
     uv = np.nan_to_num(uv, nan=-10.0, posinf=-10.0, neginf=-10.0)
-    sup_at = _sample(sup, uv)
-    mask_at = _sample(valid.astype(np.float32), uv)
+    sup_at = _sample(images.sup, uv)
+    mask_at = _sample(images.mask, uv)
     with np.errstate(invalid="ignore"):
         residual = np.abs(x[..., 2] - z_meas)
         ok = (
@@ -201,8 +328,177 @@ def intersect_rays(
     return np.where(ok, s, np.nan), np.where(ok, sup_at, 0.0)
 
 
+_POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))  # the quadratic basis x^a y^b
+# the five windows (whole, left, right, up, down) as the half of the x and of the y axis
+# each keeps: 0 = all offsets, 1 = offsets <= 0, 2 = offsets >= 0
+_HALVES = ((0, 0), (1, 0), (2, 0), (0, 1), (0, 2))
+_MOMENTS = tuple((a, b) for a in range(5) for b in range(5 - a))  # x^a y^b, a + b <= 4
+# entry (i, j) of the normal matrix: the moment of the product of basis functions i, j
+_NORMAL = np.array([[_MOMENTS.index((a + c, b + d)) for c, d in _POWERS] for a, b in _POWERS])
+_PAIRS = (_NORMAL.reshape(-1) == np.arange(15)[:, None]).astype(np.float64)  # moment <- (i, j)
+
+
+def _axis_kernels(r: int, sigma: float) -> FloatArray:
+    """(3 halves, 5 powers, 2r + 1): Gaussian x indicator of the half x (d / r)^p."""
+    d = np.arange(-r, r + 1, dtype=np.float64)
+    g = np.exp(-(d * d) / (2 * sigma**2))
+    t = d / r
+    half = np.stack([np.ones_like(d), d <= 0, d >= 0])
+    return np.stack([g * half * t**p for p in range(5)], axis=1)
+
+
+def _window_sums(a: FloatArray, kernels: FloatArray, step: int) -> FloatArray:
+    """Correlation along axis 0 at every ``step``-th position, zeros outside.
+
+    ``out[k, i, f] = sum_d kernels[k, d + r] * a[i * step + d, f]`` for ``a`` (n, f) and
+    ``kernels`` (nk, 2r + 1); returns (nk, ceil(n / step), f). As a banded matrix product
+    when the window is not much narrower than the axis, else over strided windows.
+    """
+    n, f = a.shape
+    nk, width = kernels.shape
+    r = width // 2
+    m = (n - 1) // step + 1
+    if n <= 3 * width:
+        band = np.zeros((nk, m, n + 2 * r))
+        s0, s1, s2 = band.strides  # row i of the band holds the kernel from column i * step
+        diag = np.lib.stride_tricks.as_strided(band, (nk, m, width), (s0, s1 + step * s2, s2))
+        diag[...] = kernels[:, None, :]
+        return (band[:, :, r : r + n].reshape(nk * m, n) @ a).reshape(nk, m, f)
+    padded = np.zeros((n + 2 * r, f))
+    padded[r : r + n] = a
+    win = np.lib.stride_tricks.sliding_window_view(padded, width, axis=0)[::step]
+    out = np.ascontiguousarray(win).reshape(m * f, width) @ kernels.T
+    return np.ascontiguousarray(out.reshape(m, f, nk).transpose(2, 0, 1))
+
+
+def _window_moments(
+    imgs: FloatArray, sigma: float, step: int, mom: FloatArray, bq: FloatArray, sqq: FloatArray
+) -> None:
+    """The weighted sums over the five windows of every kept node, for one scale.
+
+    ``imgs`` (rows, cols, 3) holds m, m q and m q^2; written are ``mom`` (15, 5, ny, nx),
+    the sums of m x^a y^b (:data:`_MOMENTS`), ``bq`` (6, 5, ny, nx), of m q x^a y^b
+    (:data:`_POWERS`), and ``sqq`` (5, ny, nx), of m q^2. The weights are separable, so
+    each sum is ``Ky @ img @ Kx.T`` with banded ``Kx``, ``Ky`` (:func:`_window_sums`).
+    """
+    rows, cols, _ = imgs.shape
+    ny, nx = (rows - 1) // step + 1, (cols - 1) // step + 1
+    r = int(np.ceil(2 * sigma))
+    k1 = _axis_kernels(r, sigma)  # (half, power, offset)
+    # along x, every (half, power) on the three images
+    sx = _window_sums(imgs.transpose(1, 0, 2).reshape(cols, rows * 3), k1.reshape(15, -1), step)
+    sx = sx.reshape(3, 5, nx, rows, 3).transpose(3, 4, 0, 1, 2)  # (rows, img, hx, a, nx)
+    xm = sx[:, 0]  # m x^a
+    xq = np.concatenate([sx[:, 1, :, :3], sx[:, 2, :, :1]], axis=2)  # m q x^0..2, m q^2
+    # along y: the whole column with every x half; its upper, lower half with the whole x
+    fm = _window_sums(xm.reshape(rows, -1), k1[0], step).reshape(5, ny, 3, 5, nx)
+    fq = _window_sums(xq.reshape(rows, -1), k1[0, :3], step).reshape(3, ny, 3, 4, nx)
+    um = _window_sums(xm[:, 0].reshape(rows, -1), k1[1:].reshape(10, -1), step)
+    uq = _window_sums(xq[:, 0].reshape(rows, -1), k1[1:, :3].reshape(6, -1), step)
+    um = um.reshape(2, 5, ny, 5, nx)
+    uq = uq.reshape(2, 3, ny, 4, nx)
+    hx = np.arange(3)[None, :]
+    hy = np.arange(2)[None, :]
+    a, b = (np.array([p[i] for p in _MOMENTS])[:, None] for i in (0, 1))
+    mom[:, :3] = fm[b, :, hx, a]
+    mom[:, 3:] = um[hy, b, :, a]
+    a, b = (np.array([p[i] for p in _POWERS])[:, None] for i in (0, 1))
+    bq[:, :3] = fq[b, :, hx, a]
+    bq[:, 3:] = uq[hy, b, :, a]
+    sqq[:3] = fq[0, :, hx[0], 3]
+    sqq[3:] = uq[hy[0], 0, :, 3]
+
+
+def _solve_spd(A: FloatArray, B: FloatArray) -> FloatArray:
+    """Solve many small symmetric positive definite systems at once, overwriting the
+    arguments: ``A`` (n, n, N) and ``B`` (n, c, N) hold N systems along the last axis;
+    returns X (n, c, N) with ``A X = B``. Gaussian elimination without pivoting (stable
+    for these matrices), each step one array operation over all systems.
+    """
+    n = A.shape[0]
+    for k in range(n - 1):
+        f = A[k + 1 :, k] / A[k, k]
+        A[k + 1 :, k + 1 :] -= f[:, None] * A[k, None, k + 1 :]
+        B[k + 1 :] -= f[:, None] * B[k, None]
+    X = np.empty(B.shape)
+    for k in range(n - 1, -1, -1):
+        acc = B[k] - np.sum(A[k, k + 1 :, None] * X[k + 1 :], axis=0)
+        X[k] = acc / A[k, k]
+    return X
+
+
+def _side_window_fits(
+    s: FloatArray,
+    sigmas: tuple[float, ...],
+    min_weight: float = 3.0,
+    switch: float = 3.0,
+    step: int = 1,
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`side_window_fit` at several ``sigmas`` at once: (q, rss), each
+    (len(sigmas), ceil(rows / step), ceil(cols / step))."""
+    valid = np.isfinite(s) & (s > 0)
+    q = np.where(valid, 1.0 / np.where(valid, s, 1.0), 0.0)
+    m = valid.astype(np.float64)
+    imgs = np.stack([m, m * q, m * q * q], axis=-1)
+    valid = valid[::step, ::step]
+    ns, (ny, nx) = len(sigmas), valid.shape
+    shape = (ns, 5, ny, nx)  # scale, window, node
+    mom = _WORK.get("mom", (15, *shape))
+    bq = _WORK.get("bq", (6, *shape))
+    sqq = _WORK.get("sqq", shape)
+    for i, sigma in enumerate(sigmas):
+        _window_moments(imgs, sigma, step, mom[:, i], bq[:, i], sqq[i])
+    w00 = mom[0]
+    ok = valid & (w00 >= min_weight)
+    bq[:, ~ok] = 0.0
+    # the normal equations (A + 1e-9 I) [c | e] = [b | e0] of every scale, window and
+    # node (A = I where there is no fit): one elimination gives the fit c and (A^-1)_00
+    n = ok.size
+    A = np.take(mom.reshape(15, n), _NORMAL, axis=0, out=_WORK.get("A", (6, 6, n)))
+    A[:, :, ~ok.reshape(-1)] = np.eye(6)[:, :, None]
+    A[np.arange(6), np.arange(6)] += 1e-9
+    B = _WORK.get("B", (6, 2, n))
+    B[:, 0] = bq.reshape(6, n)
+    B[:, 1] = 0.0
+    B[0, 1] = 1.0
+    sol = _solve_spd(A, B).reshape(6, 2, *shape)
+    coef, a00 = sol[:, 0], sol[0, 1]
+    # weighted residual sum of squares from the moments: S - 2 c.b + c^T A c (A without
+    # the 1e-9; where there is no fit c = 0)
+    cc = np.multiply(coef[:, None], coef[None], out=_WORK.get("cc", (6, 6, *shape)))
+    cAc = np.einsum("kn,kn->n", mom.reshape(15, n), _PAIRS @ cc.reshape(36, n))
+    res = sqq - 2 * np.sum(coef * bq, axis=0) + cAc.reshape(shape)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        R = np.where(ok, np.maximum(res, 0.0) / w00, np.inf)  # (scale, window, ny, nx)
+    var = R * a00 * _mean_weights(sigmas)[:, :, None, None]
+    side = 1 + np.argmin(R[:, 1:], axis=1)
+    best_side = np.take_along_axis(R[:, 1:], (side - 1)[:, None], axis=1)[:, 0]
+    choice = np.where(R[:, 0] > switch * best_side, side, 0)
+    choice = np.where(ok[:, 0], choice, np.where(ok.any(axis=1), np.argmax(ok, axis=1), -1))
+    pick = np.maximum(choice, 0)[:, None]
+    qf = np.take_along_axis(coef[0], pick, axis=1)[:, 0]
+    vf = np.take_along_axis(var, pick, axis=1)[:, 0]
+    good = valid & (choice >= 0) & (qf > 0)
+    return np.where(good, qf, np.nan), np.where(good, vf, np.inf)
+
+
+def _mean_weights(sigmas: tuple[float, ...]) -> FloatArray:
+    """(len(sigmas), 5): sum(w^2) / sum(w) of the weights w of each window and scale."""
+    out = np.empty((len(sigmas), 5))
+    for i, sigma in enumerate(sigmas):
+        k = _axis_kernels(int(np.ceil(2 * sigma)), sigma)[:, 0]  # (half, offset)
+        s1, s2 = np.sum(k, axis=1), np.sum(k * k, axis=1)
+        for h, (hx, hy) in enumerate(_HALVES):
+            out[i, h] = s2[hx] * s2[hy] / (s1[hx] * s1[hy])
+    return out
+
+
 def side_window_fit(
-    s: FloatArray, sigma_nodes: float, min_weight: float = 3.0, switch: float = 3.0
+    s: FloatArray,
+    sigma_nodes: float,
+    min_weight: float = 3.0,
+    switch: float = 3.0,
+    step: int = 1,
 ) -> tuple[FloatArray, FloatArray]:
     """Local quadratic regression of inverse depth over the lattice (rows, cols), in
     side windows so that creases and steps stay sharp.
@@ -215,67 +511,15 @@ def side_window_fit(
     in image coordinates on a plane, so walls stay exact; quadrics (spheres,
     cylinders, bowls) are followed up to third-order terms.
 
+    Only the nodes ``[::step, ::step]`` are fitted (the whole lattice is data).
+
     Returns
     -------
-    q : (rows, cols) fitted inverse depth, NaN where there is no fit
-    rss : (rows, cols) weighted mean squared residual of the chosen window
+    q : (ceil(rows / step), ceil(cols / step)) fitted inverse depth, NaN where no fit
+    rss : same shape, weighted mean squared residual of the chosen window
     """
-    r = int(np.ceil(2 * sigma_nodes))
-    valid = np.isfinite(s) & (s > 0)
-    q = np.where(valid, 1.0 / np.where(valid, s, 1.0), 0.0)
-    m = valid.astype(np.float64)
-    dy, dx = np.mgrid[-r : r + 1, -r : r + 1].astype(np.float64)
-    g = np.exp(-(dx * dx + dy * dy) / (2 * sigma_nodes**2))
-    x, y = dx / r, dy / r
-    halves = [np.ones_like(g), dx <= 0, dx >= 0, dy <= 0, dy >= 0]  # whole, left, right, up, down
-    powers = [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)]  # the quadratic basis x^a y^b
-
-    def corr(img: FloatArray, kernel: FloatArray) -> FloatArray:
-        # sum over the window of kernel(offset) * img(node + offset), zeros outside
-        out = cv2.filter2D(img, cv2.CV_64F, kernel, borderType=cv2.BORDER_CONSTANT)
-        return np.asarray(out, dtype=np.float64)
-
-    fits, rss, enough, var = [], [], [], []
-    for half in halves:
-        w = g * half
-        wbar = float(np.sum(w * w) / np.sum(w))
-        mom = {}
-        for a1, b1 in powers:
-            for a2, b2 in powers:
-                key = (a1 + a2, b1 + b2)
-                if key not in mom:
-                    mom[key] = corr(m, w * x ** key[0] * y ** key[1])
-        A = np.stack([np.stack([mom[(a1 + a2, b1 + b2)] for a2, b2 in powers], -1)
-                      for a1, b1 in powers], -2)  # fmt: skip
-        bq = np.stack([corr(m * q, w * x**a1 * y**b1) for a1, b1 in powers], -1)
-        sqq = corr(m * q * q, w)
-        ok = valid & (mom[(0, 0)] >= min_weight)
-        A[~ok] = np.eye(6)
-        bq[~ok] = 0.0
-        coef = np.linalg.solve(A + 1e-9 * np.eye(6), bq[..., None])[..., 0]
-        e0 = np.zeros(6)
-        e0[0] = 1.0
-        a00 = np.linalg.solve(A + 1e-9 * np.eye(6), np.broadcast_to(e0, bq.shape)[..., None])
-        a00 = a00[..., 0, 0]
-        # weighted residual sum of squares from the moments: S - 2 c.b + c^T A c
-        res = sqq - 2 * np.sum(coef * bq, -1) + np.einsum("...i,...ij,...j->...", coef, A, coef)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rss.append(np.where(ok, np.maximum(res, 0.0) / mom[(0, 0)], np.inf))
-        fits.append(coef[..., 0])
-        enough.append(ok)
-        var.append(rss[-1] * a00 * wbar)
-    R = np.stack(rss)
-    side = 1 + np.argmin(R[1:], axis=0)
-    best_side = np.take_along_axis(R[1:], (side - 1)[None], axis=0)[0]
-    choice = np.where(R[0] > switch * best_side, side, 0)
-    ok_any = np.stack(enough)
-    choice = np.where(
-        ok_any[0], choice, np.where(ok_any.any(axis=0), np.argmax(ok_any, axis=0), -1)
-    )
-    qf = np.take_along_axis(np.stack(fits), np.maximum(choice, 0)[None], axis=0)[0]
-    vf = np.take_along_axis(np.stack(var), np.maximum(choice, 0)[None], axis=0)[0]
-    good = valid & (choice >= 0) & (qf > 0)
-    return np.where(good, qf, np.nan), np.where(good, vf, np.inf)
+    q, rss = _side_window_fits(s, (sigma_nodes,), min_weight, switch, step)
+    return q[0], rss[0]
 
 
 def smooth_lattice(
@@ -283,25 +527,31 @@ def smooth_lattice(
     sigma_nodes: float,
     scales: tuple[float, ...] = (1.0,),
     accept: float = 1.5,
+    step: int = 1,
 ) -> FloatArray:
     """Side-window quadratic smoothing (:func:`side_window_fit`) at ``sigma_nodes``
     times each of ``scales`` (increasing): a node takes the largest scale whose fit is
     still about as good (residual at most ``accept`` times) as the scale below it, so
     flat and gently curved parts get the most smoothing and tighter shapes keep
     their detail. Unknown nodes stay unknown; nodes without a fit keep their value.
+
+    Returns the nodes ``[::step, ::step]`` (each depends only on the fits there; the
+    whole lattice is data).
     """
     if sigma_nodes < 0.5:
-        return s
-    valid = np.isfinite(s) & (s > 0)
-    q, var = side_window_fit(s, sigma_nodes * scales[0])
-    for k in scales[1:]:
-        q2, var2 = side_window_fit(s, sigma_nodes * k)
+        return s if step == 1 else s[::step, ::step]
+    valid = (np.isfinite(s) & (s > 0))[::step, ::step]
+    qs, vs = _side_window_fits(s, tuple(sigma_nodes * k for k in scales), step=step)
+    q, var = qs[0], vs[0]
+    for q2, var2 in zip(qs[1:], vs[1:], strict=True):
         with np.errstate(invalid="ignore"):
             take = np.isfinite(q2) & (np.abs(q2 - q) <= accept * np.sqrt(var))
         q = np.where(take, q2, q)
         var = np.where(take, var2, var)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(valid & np.isfinite(q) & (q > 0), 1.0 / q, np.where(valid, s, np.nan))
+        return np.where(
+            valid & np.isfinite(q) & (q > 0), 1.0 / q, np.where(valid, s[::step, ::step], np.nan)
+        )
 
 
 def node_spacing_m(projector: Projector, shape: tuple[int, int], depth_m: float) -> float:
@@ -408,6 +658,23 @@ def estimate_surface(
         or a fine lattice for a dense surface (see :func:`dense_shape`).
     """
     settings = settings or DepthSettings()
+    p = calibration.projector
+    s, sup, filled = _lattice_depths(depth_m, calibration, shape, settings)
+    points = p.rays(lattice_uv(p, shape)) * s[..., None]
+    conf = node_confidence(points, np.where(filled, 0.5, sup), filled, calibration, settings)
+    surface = Surface(points.astype(np.float32), p, {"source": "depth"})
+    est = SurfaceEstimate(surface, conf, filled & np.isfinite(s))
+    return replace(est, surface=replace(surface, meta={"source": "depth", **est.summary()}))
+
+
+def _lattice_depths(
+    depth_m: FloatArray,
+    calibration: Calibration,
+    shape: tuple[int, int],
+    settings: DepthSettings,
+) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """Steps 1-4 of :func:`estimate_surface`: the depth along each lattice ray
+    (rows, cols) (NaN where unknown), the support there and the filled nodes."""
     z = np.asarray(depth_m, dtype=np.float64)
     if z.shape != (calibration.depth.height, calibration.depth.width):
         z = cv2.resize(
@@ -415,25 +682,21 @@ def estimate_surface(
             (calibration.depth.width, calibration.depth.height),
             interpolation=cv2.INTER_NEAREST,
         ).astype(np.float64)
-    z = np.where(z > 0, z, np.nan)
-    zs, support = smooth_depth(clean_depth(z, settings), settings.smooth_sigma_px)
+    ok, z32 = _clean(z, settings, positive=True)
+    images = _images(*_smooth(ok, z32, settings.smooth_sigma_px), settings)
     p = calibration.projector
-    dirs = p.rays(lattice_uv(p, shape))
-    k = supersampling(p, shape, zs, settings)
+    k = _supersampling(p, shape, images.z_any, settings)
     fine = ((shape[0] - 1) * k + 1, (shape[1] - 1) * k + 1)
-    s, sup = intersect_rays(p.rays(lattice_uv(p, fine)), zs, support, calibration, settings)
+    s, sup = _intersect(p.rays(lattice_uv(p, fine)), images, calibration, settings)
     s = reject_spikes(s, settings.spike_rel)
     if np.isfinite(s).any():
         spacing = node_spacing_m(p, fine, float(np.nanmedian(s)))
         sigma = min(settings.smooth_m / spacing, settings.smooth_max_nodes)
-        s = smooth_lattice(s, sigma, settings.smooth_scales, settings.smooth_accept)
-    s, sup = s[::k, ::k], sup[::k, ::k]
+        s = smooth_lattice(s, sigma, settings.smooth_scales, settings.smooth_accept, step=k)
+    else:
+        s = s[::k, ::k]
     s, filled = fill_holes(s, settings.max_hole_nodes)
-    points = dirs * s[..., None]
-    conf = node_confidence(points, np.where(filled, 0.5, sup), filled, calibration, settings)
-    surface = Surface(points.astype(np.float32), p, {"source": "depth"})
-    est = SurfaceEstimate(surface, conf, filled & np.isfinite(s))
-    return replace(est, surface=replace(surface, meta={"source": "depth", **est.summary()}))
+    return s, sup[::k, ::k], filled
 
 
 def supersampling(
@@ -442,7 +705,13 @@ def supersampling(
     """How many times finer than ``shape`` to sample, so that nodes are at most
     ``smooth_m / 2`` apart on the surface (1 for fine lattices, at most 4)."""
     good = zs[np.isfinite(zs)]
-    z = float(np.median(good)) if good.size else 1.5
+    return _supersampling(projector, shape, float(np.median(good)) if good.size else None, settings)
+
+
+def _supersampling(
+    projector: Projector, shape: tuple[int, int], z_median: float | None, settings: DepthSettings
+) -> int:
+    z = 1.5 if z_median is None else z_median
     k = np.ceil(node_spacing_m(projector, shape, z) / (settings.smooth_m / 2))
     return int(np.clip(k, 1, settings.max_supersample))
 
