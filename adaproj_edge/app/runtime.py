@@ -114,14 +114,9 @@ class AppSettings:
     motion: MotionSettings = field(default_factory=MotionSettings)
     depth: DepthSettings = field(default_factory=DepthSettings)
 
-    surface_oversample: int = 1  # surface lattice nodes per grid cell side
-
     def grid_shape(self) -> tuple[int, int]:
-        """The surface lattice: ``surface_oversample`` nodes per grid cell side, so the
-        mesh sees the surface between its vertices (a wall corner inside a cell is
-        unfolded, not cut)."""
-        k = max(self.surface_oversample, 1)
-        return k * self.grid.rows + 1, k * self.grid.cols + 1
+        """The surface lattice: one node per warp grid vertex."""
+        return self.grid.rows + 1, self.grid.cols + 1
 
 
 @dataclass
