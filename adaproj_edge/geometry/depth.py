@@ -162,19 +162,46 @@ class _DepthImages:
     z_any: float | None
 
 
-def _median32(values: NDArray[np.float32], where: BoolArray) -> float | None:
-    """``np.median(values[where].astype(np.float64))`` without the float64 copy."""
-    n = int(np.count_nonzero(where))
-    if n == 0:
-        return None
-    pick = _WORK.get("median", values.shape, np.float32).reshape(-1)[:n]
-    np.compress(where.reshape(-1), values.reshape(-1), out=pick)
-    h = n // 2
-    if n % 2:
-        pick.partition(h)
-        return float(pick[h])
-    pick.partition([h - 1, h])
-    return (float(pick[h - 1]) + float(pick[h])) / 2
+def _medians(
+    values: NDArray[np.float32], inner: BoolArray, outer: BoolArray
+) -> tuple[float | None, float | None]:
+    """``np.median(values[mask].astype(np.float64))`` for ``inner`` and for ``outer``
+    (which contains it), None where empty; exact, without float64 copies and mostly
+    without a full partition: the middle values are looked for between two quantiles of
+    a strided sample, and the whole set partitioned only if they are not there."""
+    flat = values.reshape(-1)
+    sets = []
+    for name, where in (("inner", inner), ("extra", outer & ~inner)):
+        n = int(np.count_nonzero(where))
+        pick = _WORK.get(name, flat.shape, np.float32)[:n]
+        sets.append(np.compress(where.reshape(-1), flat, out=pick))
+    pick, extra = sets
+    bounds: tuple[np.float32, np.float32] | None = None
+    if pick.size > 8192:
+        sample = np.sort(pick[:: pick.size // 1024])
+        bounds = sample[len(sample) * 7 // 16], sample[len(sample) * 9 // 16]
+    out: list[float | None] = []
+    for parts in ((pick,), (pick, extra)):
+        n = sum(p.size for p in parts)
+        if n == 0:
+            out.append(None)
+            continue
+        kth = [n // 2] if n % 2 else [n // 2 - 1, n // 2]
+        mid = None
+        if bounds is not None:
+            lo, hi = bounds
+            below = sum(int(np.count_nonzero(p < lo)) for p in parts)
+            inside = np.concatenate([p[(p >= lo) & (p <= hi)] for p in parts])
+            if below <= kth[0] and kth[-1] < below + inside.size:
+                mid, kth = inside, [k - below for k in kth]
+        if mid is None:
+            mid = np.concatenate(parts)
+        mid.partition(kth)
+        if len(kth) == 1:
+            out.append(float(mid[kth[0]]))
+        else:
+            out.append((float(mid[kth[0]]) + float(mid[kth[1]])) / 2)
+    return out[0], out[1]
 
 
 def _clean(
@@ -188,7 +215,7 @@ def _clean(
     with np.errstate(invalid="ignore"):
         np.greater_equal(z, settings.min_depth_m, out=ok)
         ok &= np.less_equal(z, settings.max_depth_m, out=tmp)
-        if positive:
+        if positive and not settings.min_depth_m > 0:
             ok &= np.greater(z, 0.0, out=tmp)
         z32 = _WORK.get("z32", shape, np.float32)
         z32.fill(0.0)
@@ -205,8 +232,9 @@ def _clean(
 
 def _smooth(
     ok: BoolArray, z32: NDArray[np.float32], sigma_px: float
-) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """:func:`smooth_depth` of ``z32`` where ``ok`` in float32 scratch: (zs, support)."""
+) -> tuple[NDArray[np.float32], NDArray[np.float32], BoolArray]:
+    """:func:`smooth_depth` of ``z32`` where ``ok``, in float32 scratch: smoothed depth
+    (0 where there is none), support, and where there is a smoothed depth."""
     shape = ok.shape
     m = _WORK.get("m", shape, np.float32)
     np.copyto(m, ok)
@@ -216,32 +244,31 @@ def _smooth(
     cv2.GaussianBlur(zz, (0, 0), sigma_px, dst=num, borderType=cv2.BORDER_CONSTANT)
     cv2.GaussianBlur(m, (0, 0), sigma_px, dst=den, borderType=cv2.BORDER_CONSTANT)
     zs = _WORK.get("zs", shape, np.float32)
-    zs.fill(np.nan)
+    zs.fill(0.0)
     has = np.greater(den, np.float32(1e-3), out=_WORK.get("has", shape, np.bool_))
     np.divide(num, den, out=zs, where=has)
-    return zs, den
+    return zs, den, has
 
 
 def _images(
-    zs: NDArray[np.float32], support: NDArray[np.float32], settings: DepthSettings
+    zs: NDArray[np.float32], support: NDArray[np.float32], has: BoolArray, settings: DepthSettings
 ) -> _DepthImages:
-    """The images :func:`intersect_rays` samples, from :func:`_smooth` (float32)."""
+    """The images :func:`intersect_rays` samples, from :func:`_smooth`."""
     shape = zs.shape
-    known = np.isfinite(zs, out=_WORK.get("known", shape, np.bool_))
-    usable = np.greater_equal(
-        support, np.float64(settings.min_support), out=_WORK.get("usable", shape, np.bool_)
-    )
-    usable &= known
-    num = _WORK.get("inum", shape, np.float32)
-    num.fill(0.0)
-    # float32(zs * support) as in float64: a product of two float32 is exact in float64
-    np.multiply(zs, support, out=num, where=usable)
-    wgt = _WORK.get("wgt", shape, np.float32)
-    wgt.fill(0.0)
-    np.copyto(wgt, support, where=usable)
+    # support >= min_support in float64 (so > 1e-3: there is a smoothed depth): the
+    # float32 support against the least float32 that is not below min_support
+    least = np.float32(settings.min_support)
+    if float(least) < settings.min_support:
+        least = np.nextafter(least, np.float32(np.inf))
+    usable = np.greater_equal(support, least, out=_WORK.get("usable", shape, np.bool_))
+    if not settings.min_support > 1e-3:
+        usable &= has
+    wgt = np.multiply(support, usable, out=_WORK.get("wgt", shape, np.float32))
+    # float32(zs * support) as before in float64: a product of two float32 is exact there
+    num = np.multiply(zs, wgt, out=_WORK.get("inum", shape, np.float32))
     mask = _WORK.get("mask", shape, np.float32)
     np.copyto(mask, usable)
-    return _DepthImages(num, wgt, support, mask, _median32(zs, usable), _median32(zs, known))
+    return _DepthImages(num, wgt, support, mask, *_medians(zs, usable, has))
 
 
 def clean_depth(depth_m: FloatArray, settings: DepthSettings) -> FloatArray:
@@ -254,14 +281,19 @@ def smooth_depth(z: FloatArray, sigma_px: float) -> tuple[FloatArray, FloatArray
     """Normalised-convolution smoothing: (smoothed z, support), both (h, w)."""
     ok = np.isfinite(z)
     z32 = np.where(ok, z, 0.0).astype(np.float32)
-    zs, den = _smooth(ok, z32, sigma_px)
-    return zs.astype(np.float64), den.astype(np.float64)
+    zs, den, has = _smooth(ok, z32, sigma_px)
+    return np.where(has, zs, np.nan).astype(np.float64), den.astype(np.float64)
 
 
-def _sample(img: NDArray[np.float32], uv: FloatArray) -> FloatArray:
-    """Bilinear sample of ``img`` (h, w) at ``uv`` (..., 2); 0 outside."""
-    mx = uv[..., 0].astype(np.float32)
-    my = uv[..., 1].astype(np.float32)
+def _maps(uv: FloatArray) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """``cv2.remap`` maps for pixel coordinates ``uv`` (..., 2); non-finite ones -> -10."""
+    uv = np.where(np.isfinite(uv), uv, -10.0)
+    return uv[..., 0].astype(np.float32), uv[..., 1].astype(np.float32)
+
+
+def _sample(img: NDArray[np.float32], maps: tuple[NDArray[np.float32], ...]) -> FloatArray:
+    """Bilinear sample of ``img`` (h, w) at :func:`_maps`; 0 outside."""
+    mx, my = maps
     out = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     return out.astype(np.float64)
 
@@ -304,19 +336,17 @@ def _intersect(
     for _ in range(settings.iterations):
         x = s[..., None] * a + b
         with np.errstate(invalid="ignore", divide="ignore"):
-            uv = (x @ K.T)[..., :2] / x[..., 2:3]
-        uv = np.nan_to_num(uv, nan=-10.0, posinf=-10.0, neginf=-10.0)
-        w = _sample(wgt, uv)
+            maps = _maps((x @ K.T)[..., :2] / x[..., 2:3])
+        w = _sample(wgt, maps)
         with np.errstate(invalid="ignore", divide="ignore"):
-            z_meas = np.where(w > 1e-3, _sample(num, uv) / w, np.nan)
+            z_meas = np.where(w > 1e-3, _sample(num, maps) / w, np.nan)
             s_new = (z_meas - b[2]) / a[..., 2]
         s = np.where(np.isfinite(s_new) & (s_new > 0), s_new, s)
     x = s[..., None] * a + b
     with np.errstate(invalid="ignore", divide="ignore"):
-        uv = (x @ K.T)[..., :2] / x[..., 2:3]
-    uv = np.nan_to_num(uv, nan=-10.0, posinf=-10.0, neginf=-10.0)
-    sup_at = _sample(images.sup, uv)
-    mask_at = _sample(images.mask, uv)
+        maps = _maps((x @ K.T)[..., :2] / x[..., 2:3])
+    sup_at = _sample(images.sup, maps)
+    mask_at = _sample(images.mask, maps)
     with np.errstate(invalid="ignore"):
         residual = np.abs(x[..., 2] - z_meas)
         ok = (
@@ -335,7 +365,6 @@ _HALVES = ((0, 0), (1, 0), (2, 0), (0, 1), (0, 2))
 _MOMENTS = tuple((a, b) for a in range(5) for b in range(5 - a))  # x^a y^b, a + b <= 4
 # entry (i, j) of the normal matrix: the moment of the product of basis functions i, j
 _NORMAL = np.array([[_MOMENTS.index((a + c, b + d)) for c, d in _POWERS] for a, b in _POWERS])
-_PAIRS = (_NORMAL.reshape(-1) == np.arange(15)[:, None]).astype(np.float64)  # moment <- (i, j)
 
 
 def _axis_kernels(r: int, sigma: float) -> FloatArray:
@@ -454,7 +483,7 @@ def _side_window_fits(
     # the normal equations (A + 1e-9 I) [c | e] = [b | e0] of every scale, window and
     # node (A = I where there is no fit): one elimination gives the fit c and (A^-1)_00
     n = ok.size
-    A = np.take(mom.reshape(15, n), _NORMAL, axis=0, out=_WORK.get("A", (6, 6, n)))
+    A = np.take(mom.reshape(15, n), _NORMAL, axis=0, out=_WORK.get("A", (6, 6, n)), mode="clip")
     A[:, :, ~ok.reshape(-1)] = np.eye(6)[:, :, None]
     A[np.arange(6), np.arange(6)] += 1e-9
     B = _WORK.get("B", (6, 2, n))
@@ -465,9 +494,12 @@ def _side_window_fits(
     coef, a00 = sol[:, 0], sol[0, 1]
     # weighted residual sum of squares from the moments: S - 2 c.b + c^T A c (A without
     # the 1e-9; where there is no fit c = 0)
-    cc = np.multiply(coef[:, None], coef[None], out=_WORK.get("cc", (6, 6, *shape)))
-    cAc = np.einsum("kn,kn->n", mom.reshape(15, n), _PAIRS @ cc.reshape(36, n))
-    res = sqq - 2 * np.sum(coef * bq, axis=0) + cAc.reshape(shape)
+    cAc = np.zeros(shape)
+    for i in range(6):
+        Ac = np.sum(mom[_NORMAL[i]] * coef, axis=0)
+        Ac *= coef[i]
+        cAc += Ac
+    res = sqq - 2 * np.sum(coef * bq, axis=0) + cAc
     with np.errstate(invalid="ignore", divide="ignore"):
         R = np.where(ok, np.maximum(res, 0.0) / w00, np.inf)  # (scale, window, ny, nx)
     var = R * a00 * _mean_weights(sigmas)[:, :, None, None]
