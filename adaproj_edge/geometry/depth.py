@@ -117,6 +117,23 @@ def lattice_uv(projector: Projector, shape: tuple[int, int]) -> FloatArray:
     return np.stack(np.meshgrid(xs, ys), axis=-1)
 
 
+_RAYS: dict[tuple[bytes, int, int, tuple[int, int]], FloatArray] = {}
+
+
+def _lattice_rays(projector: Projector, shape: tuple[int, int]) -> FloatArray:
+    """``projector.rays(lattice_uv(projector, shape))``, kept for the next frames
+    (read-only)."""
+    key = (projector.K.tobytes(), projector.width, projector.height, shape)
+    rays = _RAYS.get(key)
+    if rays is None:
+        if len(_RAYS) > 16:
+            _RAYS.clear()
+        rays = projector.rays(lattice_uv(projector, shape))
+        rays.setflags(write=False)
+        _RAYS[key] = rays
+    return rays
+
+
 def depth_sigma(z: FloatArray, calibration: Calibration, disparity_sigma_px: float) -> FloatArray:
     """Stereo depth noise (m) at depth ``z``: z^2 / (f B) * sigma_disparity."""
     d = calibration.depth
@@ -166,36 +183,35 @@ def _medians(
     values: NDArray[np.float32], inner: BoolArray, outer: BoolArray
 ) -> tuple[float | None, float | None]:
     """``np.median(values[mask].astype(np.float64))`` for ``inner`` and for ``outer``
-    (which contains it), None where empty; exact, without float64 copies and mostly
-    without a full partition: the middle values are looked for between two quantiles of
-    a strided sample, and the whole set partitioned only if they are not there."""
+    (None where empty), exactly and mostly without sorting: the middle values are
+    looked for between two quantiles of a strided sample, and the whole set partitioned
+    only if they are not there."""
     flat = values.reshape(-1)
-    sets = []
-    for name, where in (("inner", inner), ("extra", outer & ~inner)):
-        n = int(np.count_nonzero(where))
-        pick = _WORK.get(name, flat.shape, np.float32)[:n]
-        sets.append(np.compress(where.reshape(-1), flat, out=pick))
-    pick, extra = sets
-    bounds: tuple[np.float32, np.float32] | None = None
-    if pick.size > 8192:
-        sample = np.sort(pick[:: pick.size // 1024])
-        bounds = sample[len(sample) * 7 // 16], sample[len(sample) * 9 // 16]
+    masks = inner.reshape(-1), outer.reshape(-1)
+    counts = [int(np.count_nonzero(m)) for m in masks]
+    stride = max(1, flat.size // 4096)
+    sample = np.sort(flat[::stride][masks[0][::stride]])
+    below = within = None
+    if counts[0] > 8192 and sample.size >= 256:
+        lo, hi = sample[sample.size * 7 // 16], sample[sample.size * 9 // 16]
+        below = np.less(flat, lo, out=_WORK.get("below", flat.shape, np.bool_))
+        within = np.greater_equal(flat, lo, out=_WORK.get("within", flat.shape, np.bool_))
+        within &= np.less_equal(flat, hi, out=_WORK.get("tmp", flat.shape, np.bool_))
     out: list[float | None] = []
-    for parts in ((pick,), (pick, extra)):
-        n = sum(p.size for p in parts)
+    for mask, n in zip(masks, counts, strict=True):
         if n == 0:
             out.append(None)
             continue
         kth = [n // 2] if n % 2 else [n // 2 - 1, n // 2]
         mid = None
-        if bounds is not None:
-            lo, hi = bounds
-            below = sum(int(np.count_nonzero(p < lo)) for p in parts)
-            inside = np.concatenate([p[(p >= lo) & (p <= hi)] for p in parts])
-            if below <= kth[0] and kth[-1] < below + inside.size:
-                mid, kth = inside, [k - below for k in kth]
+        if below is not None and within is not None:
+            sel = _WORK.get("sel", flat.shape, np.bool_)
+            k0 = int(np.count_nonzero(np.logical_and(below, mask, out=sel)))
+            inside = flat[np.logical_and(within, mask, out=sel)]
+            if k0 <= kth[0] and kth[-1] < k0 + inside.size:
+                mid, kth = inside, [k - k0 for k in kth]
         if mid is None:
-            mid = np.concatenate(parts)
+            mid = flat[mask]
         mid.partition(kth)
         if len(kth) == 1:
             out.append(float(mid[kth[0]]))
@@ -402,12 +418,13 @@ def _window_sums(a: FloatArray, kernels: FloatArray, step: int) -> FloatArray:
 
 def _window_moments(
     imgs: FloatArray, sigma: float, step: int, mom: FloatArray, bq: FloatArray, sqq: FloatArray
-) -> None:
+) -> FloatArray:
     """The weighted sums over the five windows of every kept node, for one scale.
 
     ``imgs`` (rows, cols, 3) holds m, m q and m q^2; written are ``mom`` (15, 5, ny, nx),
     the sums of m x^a y^b (:data:`_MOMENTS`), ``bq`` (6, 5, ny, nx), of m q x^a y^b
-    (:data:`_POWERS`), and ``sqq`` (5, ny, nx), of m q^2. The weights are separable, so
+    (:data:`_POWERS`), and ``sqq`` (5, ny, nx), of m q^2; returns sum(w^2) / sum(w) of
+    the weights of each window (5,). The weights are separable, so
     each sum is ``Ky @ img @ Kx.T`` with banded ``Kx``, ``Ky`` (:func:`_window_sums`).
     """
     rows, cols, _ = imgs.shape
@@ -436,6 +453,9 @@ def _window_moments(
     bq[:, 3:] = uq[hy, b, :, a]
     sqq[:3] = fq[0, :, hx[0], 3]
     sqq[3:] = uq[hy[0], 0, :, 3]
+    # sum(w^2) / sum(w) of each window's weights w
+    s1, s2 = np.sum(k1[:, 0], axis=1), np.sum(k1[:, 0] ** 2, axis=1)
+    return np.array([s2[hx] * s2[hy] / (s1[hx] * s1[hy]) for hx, hy in _HALVES])
 
 
 def _solve_spd(A: FloatArray, B: FloatArray) -> FloatArray:
@@ -475,8 +495,9 @@ def _side_window_fits(
     mom = _WORK.get("mom", (15, *shape))
     bq = _WORK.get("bq", (6, *shape))
     sqq = _WORK.get("sqq", shape)
+    wbar = np.empty((ns, 5, 1, 1))  # sum(w^2) / sum(w) of the weights of each window
     for i, sigma in enumerate(sigmas):
-        _window_moments(imgs, sigma, step, mom[:, i], bq[:, i], sqq[i])
+        wbar[i, :, 0, 0] = _window_moments(imgs, sigma, step, mom[:, i], bq[:, i], sqq[i])
     w00 = mom[0]
     ok = valid & (w00 >= min_weight)
     bq[:, ~ok] = 0.0
@@ -502,7 +523,7 @@ def _side_window_fits(
     res = sqq - 2 * np.sum(coef * bq, axis=0) + cAc
     with np.errstate(invalid="ignore", divide="ignore"):
         R = np.where(ok, np.maximum(res, 0.0) / w00, np.inf)  # (scale, window, ny, nx)
-    var = R * a00 * _mean_weights(sigmas)[:, :, None, None]
+    var = R * a00 * wbar
     side = 1 + np.argmin(R[:, 1:], axis=1)
     best_side = np.take_along_axis(R[:, 1:], (side - 1)[:, None], axis=1)[:, 0]
     choice = np.where(R[:, 0] > switch * best_side, side, 0)
@@ -512,17 +533,6 @@ def _side_window_fits(
     vf = np.take_along_axis(var, pick, axis=1)[:, 0]
     good = valid & (choice >= 0) & (qf > 0)
     return np.where(good, qf, np.nan), np.where(good, vf, np.inf)
-
-
-def _mean_weights(sigmas: tuple[float, ...]) -> FloatArray:
-    """(len(sigmas), 5): sum(w^2) / sum(w) of the weights w of each window and scale."""
-    out = np.empty((len(sigmas), 5))
-    for i, sigma in enumerate(sigmas):
-        k = _axis_kernels(int(np.ceil(2 * sigma)), sigma)[:, 0]  # (half, offset)
-        s1, s2 = np.sum(k, axis=1), np.sum(k * k, axis=1)
-        for h, (hx, hy) in enumerate(_HALVES):
-            out[i, h] = s2[hx] * s2[hy] / (s1[hx] * s1[hy])
-    return out
 
 
 def side_window_fit(
@@ -692,7 +702,7 @@ def estimate_surface(
     settings = settings or DepthSettings()
     p = calibration.projector
     s, sup, filled = _lattice_depths(depth_m, calibration, shape, settings)
-    points = p.rays(lattice_uv(p, shape)) * s[..., None]
+    points = _lattice_rays(p, shape) * s[..., None]
     conf = node_confidence(points, np.where(filled, 0.5, sup), filled, calibration, settings)
     surface = Surface(points.astype(np.float32), p, {"source": "depth"})
     est = SurfaceEstimate(surface, conf, filled & np.isfinite(s))
@@ -719,7 +729,7 @@ def _lattice_depths(
     p = calibration.projector
     k = _supersampling(p, shape, images.z_any, settings)
     fine = ((shape[0] - 1) * k + 1, (shape[1] - 1) * k + 1)
-    s, sup = _intersect(p.rays(lattice_uv(p, fine)), images, calibration, settings)
+    s, sup = _intersect(_lattice_rays(p, fine), images, calibration, settings)
     s = reject_spikes(s, settings.spike_rel)
     if np.isfinite(s).any():
         spacing = node_spacing_m(p, fine, float(np.nanmedian(s)))
