@@ -63,6 +63,7 @@ from adaproj_edge.errors import AdaprojError, ImageError
 from adaproj_edge.fileio import read_image
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.depth import DepthSettings, SurfaceFilter, estimate_surface
+from adaproj_edge.geometry.planes import PlaneSettings, snap_planes
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.hal.button import ButtonEvent
 from adaproj_edge.hal.clock import Clock
@@ -113,6 +114,7 @@ class AppSettings:
     depth_bin_m: float = 0.03
     motion: MotionSettings = field(default_factory=MotionSettings)
     depth: DepthSettings = field(default_factory=DepthSettings)
+    planes: PlaneSettings | None = field(default_factory=PlaneSettings)  # None: no snapping
 
     def grid_shape(self) -> tuple[int, int]:
         """The surface lattice: one node per warp grid vertex."""
@@ -404,7 +406,7 @@ class Runtime:
             return
         if moving:
             cur = self.filter.update(est, still=False)
-            self._update(cur.surface, refine=False, reason="moving", t_start=t_start)
+            self._update(self._walls(cur.surface), refine=False, reason="moving", t_start=t_start)
             self._refine_pending = True
             return
         cur = self.filter.update(est, still=True)
@@ -413,9 +415,16 @@ class Runtime:
         better = cur.frames in s.refine_at_frames and cur.frames > self._shown_frames
         if self._refine_pending or better or self._changed(cur.surface):
             reason = "settled" if self._refine_pending else "averaged" if better else "changed"
-            self._update(cur.surface, refine=True, reason=reason, t_start=t_start)
+            self._update(self._walls(cur.surface), refine=True, reason=reason, t_start=t_start)
             self._shown_frames = cur.frames
             self._refine_pending = False
+
+    def _walls(self, surface: Surface) -> Surface:
+        """``surface`` with its large planar pieces snapped onto their planes."""
+        if self.settings.planes is None:
+            return surface
+        with self.pipeline.timer("planes"):
+            return snap_planes(surface, self.settings.planes)[0]
 
     def _depth_problem(self, frame: DepthFrame, coverage: float) -> None:
         d = frame.depth_mm
@@ -465,7 +474,7 @@ class Runtime:
             return
         self._set_state(State.PROJECTING)
         self._refine_pending = self.motion.moving
-        self._update(cur.surface, refine=True, reason="capture", t_start=t_start)
+        self._update(self._walls(cur.surface), refine=True, reason="capture", t_start=t_start)
         self._shown_frames = cur.frames
 
     def _reshow(self, reason: str) -> None:

@@ -1,0 +1,223 @@
+"""Walls: large planar pieces of an estimated surface, snapped onto their planes.
+
+Walls, wall corners and tables are what a projector is pointed at most often. Stereo
+noise of a few millimetres on them is small next to their size, but the warp reads
+the surface's *shape* from neighbouring lattice nodes a few centimetres apart, so it
+turns that noise into visible distortion of a surface that should show none. Where a
+large connected piece of the lattice lies on one plane to within the noise, moving
+its nodes onto the plane fitted to all of them (each along its own projector ray)
+removes the noise there and changes nothing else.
+
+:func:`snap_planes` finds up to ``max_planes`` such pieces, largest first: candidate
+planes are fitted to small lattice windows, the one with the most nodes within
+``tolerance_rel`` of the median depth wins, is refitted to those nodes by least
+squares (twice), and its largest 4-connected set of inliers is accepted when it
+covers ``min_fraction`` of the nodes and its RMS residual is below ``max_rms_rel`` of
+the median depth (stereo noise grows with depth). Curved surfaces (a column, a
+dome, a bowl) never meet that on a large piece and are left as they are.
+
+Pure: arrays in, arrays out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.geometry.surface import Surface
+
+
+@dataclass(frozen=True)
+class PlaneSettings:
+    """Tuning of :func:`snap_planes` (metres, fractions of the lattice's nodes)."""
+
+    tolerance_rel: float = 0.003  # of the median depth: 4.5 mm at 1.5 m
+    max_rms_rel: float = 0.0015
+    min_fraction: float = 0.25
+    max_bend: float = 1.5  # see curvature_ratio
+    max_planes: int = 3
+    window: int = 2  # candidate planes from (2 w + 1)^2 node windows ...
+    stride: int = 2  # ... centred on every stride-th node
+
+
+@dataclass(frozen=True)
+class Plane:
+    """``normal . X = offset`` (unit normal facing the projector), and its nodes."""
+
+    normal: FloatArray
+    offset: float
+    nodes: NDArray[np.bool_]
+    rms_m: float
+    bend: float
+
+
+def fit_plane(points: FloatArray) -> tuple[FloatArray, float]:
+    """Least-squares plane (unit normal with negative z, offset) of points (n, 3)."""
+    c = points.mean(axis=0)
+    _, _, vt = np.linalg.svd(points - c, full_matrices=False)
+    n = vt[-1]
+    if n[2] > 0:
+        n = -n
+    return n, float(n @ c)
+
+
+def _candidates(points: FloatArray, valid: NDArray[np.bool_], s: PlaneSettings) -> FloatArray:
+    """(k, 4) planes [n, offset] fitted to lattice windows with every node known."""
+    size = 2 * s.window + 1
+    if min(valid.shape) < size:
+        return np.zeros((0, 4))
+    win = np.lib.stride_tricks.sliding_window_view(points, (size, size), axis=(0, 1))
+    ok = np.asarray(
+        np.lib.stride_tricks.sliding_window_view(valid, (size, size)).all(axis=(-2, -1))
+    )
+    win, ok = win[:: s.stride, :: s.stride], ok[:: s.stride, :: s.stride]
+    x = np.moveaxis(win[ok], 1, -1).reshape(-1, size * size, 3)  # (k, n, 3)
+    if x.shape[0] == 0:
+        return np.zeros((0, 4))
+    c = x.mean(axis=1)
+    d = x - c[:, None, :]
+    _, vecs = np.linalg.eigh(np.einsum("kni,knj->kij", d, d))
+    n = vecs[:, :, 0]  # the smallest eigenvalue's vector: the normal
+    n = np.where(n[:, 2:3] > 0, -n, n)
+    return np.concatenate([n, np.sum(n * c, axis=1, keepdims=True)], axis=1)
+
+
+def curvature_ratio(points: FloatArray, normal: FloatArray, offset: float) -> float:
+    """How much better a quadric than the plane fits ``points`` (n, 3): the RMS distance
+    to the plane over the RMS residual of a quadratic height field above it. About 1
+    for a noisy plane; larger for a gently curved piece (a strip of a column, which a
+    plane can fit to within the noise)."""
+    r = points @ normal - offset
+    e1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(normal, e1)
+    c = points - points.mean(axis=0)
+    a, b = c @ e1, c @ e2
+    scale = max(float(np.abs(np.r_[a, b]).max()), 1e-9)
+    a, b = a / scale, b / scale
+    A = np.stack([np.ones_like(a), a, b, a * a, a * b, b * b], axis=1)
+    coef, *_ = np.linalg.lstsq(A, r, rcond=None)
+    rq = float(np.sqrt(np.mean((r - A @ coef) ** 2)))
+    return float(np.sqrt(np.mean(r**2))) / max(rq, 1e-12)
+
+
+def find_planes(surface: Surface, settings: PlaneSettings | None = None) -> list[Plane]:
+    """The large planar pieces of ``surface``'s lattice, largest first."""
+    s = settings or PlaneSettings()
+    pts = surface.points.astype(np.float64)
+    valid = np.asarray(np.isfinite(pts).all(axis=-1))
+    n_valid = int(valid.sum())
+    if n_valid == 0:
+        return []
+    z = float(np.median(pts[valid][:, 2]))
+    tol, max_rms = s.tolerance_rel * z, s.max_rms_rel * z
+    free = valid.copy()
+    cand = _candidates(pts, valid, s)
+    flat = pts.reshape(-1, 3)
+    planes: list[Plane] = []
+    for _ in range(3 * s.max_planes):  # a rejected piece is set aside, then the next
+        if len(planes) == s.max_planes or cand.shape[0] == 0:
+            break
+        with np.errstate(invalid="ignore"):
+            near = np.abs(flat @ cand[:, :3].T - cand[:, 3]) < tol  # (N, k)
+        counts = np.sum(near & free.reshape(-1, 1), axis=0)
+        best = int(np.argmax(counts))
+        if counts[best] < s.min_fraction * n_valid:
+            break
+        n, d = cand[best, :3], float(cand[best, 3])
+        for _ in range(2):
+            with np.errstate(invalid="ignore"):
+                inliers = free & (np.abs(pts @ n - d) < tol)
+            if inliers.sum() < 3:
+                break
+            n, d = fit_plane(pts[inliers])
+        with np.errstate(invalid="ignore"):
+            inliers = free & (np.abs(pts @ n - d) < tol)
+        labels, count = ndimage.label(inliers)
+        if count == 0:
+            free &= ~near[:, best].reshape(free.shape)
+            continue
+        sizes = np.bincount(labels.ravel())
+        sizes[0] = 0
+        piece = labels == int(np.argmax(sizes))
+        free &= ~piece
+        rms = float(np.sqrt(np.mean((pts[piece] @ n - d) ** 2)))
+        bend = curvature_ratio(pts[piece], n, d)
+        if piece.sum() >= s.min_fraction * n_valid and rms <= max_rms and bend <= s.max_bend:
+            planes.append(Plane(n, d, piece, rms, bend))
+    return planes
+
+
+def plane_labels(surface: Surface, planes: list[Plane], tolerance_m: float) -> NDArray[np.intp]:
+    """(rows, cols) index of the plane each node belongs to, -1 for none: the plane's
+    piece, grown by one ring of nodes that lie within ``tolerance_m`` of it (the nodes
+    along a crease, which the depth smoothing may have pulled off both walls)."""
+    pts = surface.points.astype(np.float64)
+    labels = np.full(pts.shape[:2], -1, dtype=np.intp)
+    for k, p in enumerate(planes):
+        labels[p.nodes] = k
+    for k, p in enumerate(planes):
+        ring = ndimage.binary_dilation(p.nodes, structure=np.ones((3, 3), bool)) & (labels < 0)
+        with np.errstate(invalid="ignore"):
+            near = np.abs(pts @ p.normal - p.offset) < tolerance_m
+        labels[ring & near] = k
+    return labels
+
+
+def _plane_depth(rays: FloatArray, plane: Plane) -> FloatArray:
+    """Depth (z) where ``rays`` (..., 3; z = 1) meet ``plane``; NaN where they do not."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = plane.offset / (rays @ plane.normal)
+    return np.where(np.isfinite(z) & (z > 0), z, np.nan)
+
+
+def snap_planes(
+    surface: Surface, settings: PlaneSettings | None = None, factor: int = 4
+) -> tuple[Surface, list[Plane]]:
+    """``surface`` with its large planar pieces replaced by their planes; the pieces.
+
+    The result is a lattice ``factor`` times finer (when a plane was found), so the
+    warp sees a crease between two walls where it is, not cut by the coarse lattice:
+    a node whose lattice cell has all its corners on planes takes, of those planes,
+    the one nearest the interpolated surface there (inside a wall corner the nearer
+    wall, outside one the farther); other nodes are interpolated. Every node stays on
+    its projector ray."""
+    s = settings or PlaneSettings()
+    planes = find_planes(surface, s)
+    if not planes:
+        return surface, planes
+    z_med = float(np.nanmedian(surface.points[..., 2]))
+    labels = plane_labels(surface, planes, s.tolerance_rel * z_med)
+    rows, cols = surface.shape
+    p = surface.projector
+    shape = ((rows - 1) * factor + 1, (cols - 1) * factor + 1)
+    xs = np.linspace(0.0, p.width - 1.0, shape[1])
+    ys = np.linspace(0.0, p.height - 1.0, shape[0])
+    uv = np.stack(np.meshgrid(xs, ys), axis=-1)
+    rays = p.rays(uv)
+    z_interp = surface.depth_at(uv)
+    # the coarse cell of every fine node, and its corners' plane labels
+    i = np.minimum(np.arange(shape[0]) // factor, rows - 2)
+    j = np.minimum(np.arange(shape[1]) // factor, cols - 2)
+    ii, jj = np.meshgrid(i, j, indexing="ij")
+    corner_labels = np.stack(
+        [labels[ii, jj], labels[ii + 1, jj], labels[ii, jj + 1], labels[ii + 1, jj + 1]]
+    )
+    on_planes = np.all(corner_labels >= 0, axis=0)
+    z = z_interp.copy()
+    best = np.full(shape, np.inf)
+    for k, plane in enumerate(planes):
+        zk = _plane_depth(rays, plane)
+        use = on_planes & np.any(corner_labels == k, axis=0) & np.isfinite(zk)
+        with np.errstate(invalid="ignore"):
+            gap = np.abs(zk - np.where(np.isfinite(z_interp), z_interp, zk))
+        take = use & (gap < best)
+        z = np.where(take, zk, z)
+        best = np.where(take, gap, best)
+    meta = {**surface.meta, "planes": len(planes)}
+    points = (rays * z[..., None]).astype(np.float32)
+    return Surface(points, p, meta), planes
