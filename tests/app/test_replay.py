@@ -18,8 +18,6 @@ from tests.app.golden import GOLDEN, differences, golden_view, session_paths
 NAMES = sorted(session_paths())
 # scored against the ground truth (the push session's new content has no salient region)
 SIMULATED = [n for n in NAMES if n not in ("faults", "push")]
-# a distortion this small counts as none (as in tests/test_depth_warp.py)
-NONE = 0.003
 
 
 @functools.cache
@@ -47,25 +45,12 @@ def _displayed_vs_truth(name: str) -> list[tuple[float, float]]:
     return [(d["shown_angle_error"], d["truth_angle_error"]) for d in replayed(name)["distortion"]]
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(
-            "corner",
-            marks=pytest.mark.xfail(
-                reason="few-frame depth estimates of the corner give 3-5x the (tiny) true "
-                "distortion; see the report",
-                strict=True,
-            ),
-        ),
-        *[n for n in SIMULATED if n != "corner"],
-    ],
-)
+@pytest.mark.parametrize("name", SIMULATED)
 def test_displayed_distortion_is_within_twice_the_true_surface_warp(name: str) -> None:
     pairs = _displayed_vs_truth(name)
     assert pairs
     for shown, truth in pairs:
-        assert shown <= 2 * truth + NONE, (shown, truth)
+        assert shown <= 2 * truth, (shown, truth)
 
 
 def test_fault_session_keeps_the_last_frame_and_recovers_within_a_second() -> None:
