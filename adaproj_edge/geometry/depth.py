@@ -380,6 +380,10 @@ _POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))  # the quadratic basi
 _HALVES = ((0, 0), (1, 0), (2, 0), (0, 1), (0, 2))
 _MOMENTS = tuple((a, b) for a in range(5) for b in range(5 - a))  # x^a y^b, a + b <= 4
 # entry (i, j) of the normal matrix: the moment of the product of basis functions i, j
+_MOMENT_A, _MOMENT_B = np.array(_MOMENTS).T
+_POWER_A, _POWER_B = np.array(_POWERS).T
+# the x half of the whole, left, right windows; the y half of the up, down ones
+_HX, _HY = np.arange(3), np.arange(2)
 _NORMAL = np.array([[_MOMENTS.index((a + c, b + d)) for c, d in _POWERS] for a, b in _POWERS])
 
 
@@ -443,16 +447,15 @@ def _window_moments(
     uq = _window_sums(xq[:, 0].reshape(rows, -1), k1[1:, :3].reshape(6, -1), step)
     um = um.reshape(2, 5, ny, 5, nx)
     uq = uq.reshape(2, 3, ny, 4, nx)
-    hx = np.arange(3)[None, :]
-    hy = np.arange(2)[None, :]
-    a, b = (np.array([p[i] for p in _MOMENTS])[:, None] for i in (0, 1))
+    hx, hy = _HX[None], _HY[None]
+    a, b = _MOMENT_A[:, None], _MOMENT_B[:, None]
     mom[:, :3] = fm[b, :, hx, a]
     mom[:, 3:] = um[hy, b, :, a]
-    a, b = (np.array([p[i] for p in _POWERS])[:, None] for i in (0, 1))
+    a, b = _POWER_A[:, None], _POWER_B[:, None]
     bq[:, :3] = fq[b, :, hx, a]
     bq[:, 3:] = uq[hy, b, :, a]
-    sqq[:3] = fq[0, :, hx[0], 3]
-    sqq[3:] = uq[hy[0], 0, :, 3]
+    sqq[:3] = fq[0, :, _HX, 3]
+    sqq[3:] = uq[_HY, 0, :, 3]
     # sum(w^2) / sum(w) of each window's weights w
     s1, s2 = np.sum(k1[:, 0], axis=1), np.sum(k1[:, 0] ** 2, axis=1)
     return np.array([s2[hx] * s2[hy] / (s1[hx] * s1[hy]) for hx, hy in _HALVES])
