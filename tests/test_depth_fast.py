@@ -582,6 +582,22 @@ def test_window_sums_are_the_correlation() -> None:
                 np.testing.assert_allclose(out[i], full[::step], rtol=1e-12, atol=1e-12)
 
 
+def test_medians_are_exact() -> None:
+    rng = np.random.default_rng(9)
+    for n in (1, 2, 3, 10, 8193, 8194, 50001, 256000):
+        base = (rng.random(n) * 3 + 0.4).astype(np.float32)
+        for values in (base, np.full(n, 1.5, np.float32), np.sort(base), np.round(base, 1)):
+            outer = rng.random(n) < 0.8
+            for inner in (outer & (rng.random(n) < 0.9), outer & (rng.random(n) < 0.2), ~outer):
+                inner &= outer
+                got = depth._medians(values.astype(np.float32), inner, outer)
+                want = tuple(
+                    float(np.median(values[w].astype(np.float64))) if w.any() else None
+                    for w in (inner, outer)
+                )
+                assert got == want
+
+
 def test_smooth_lattice_keeps_its_old_contract() -> None:
     s = synthetic_lattices(noise=False)[0][1]
     assert depth.smooth_lattice(s, 0.3) is s  # too little to smooth
