@@ -54,6 +54,14 @@ def run(args: argparse.Namespace) -> int:
         + f"; warps: {c['content_free']} content-free, {c['content_aware']} content-aware, "
         f"{c['cache_hits']} cache hits; {c['frames_shown']} frames shown"
     )
+    link = s["link"]
+    if link["rx_bytes"]:
+        dropped = sum(link["dropped_frames"].values())
+        print(
+            f"  serial link: {link['requests']} requests ({link['refused']} refused, "
+            f"{dropped} bad frames dropped), {link['content_activations']} content "
+            f"activations, {link['tx_mismatches']} replies differ from the recording"
+        )
     for d in s["distortion"]:
         print(
             f"  t={d['t_s']:.2f}s angle error shown {d['shown_angle_error']:.4f} "

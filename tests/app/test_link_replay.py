@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from adaproj_edge.app.replay import ReplayOptions, replay_session
+from adaproj_edge.cli import main
 from adaproj_edge.session.reader import Scan, iter_records, read_calibration
 from adaproj_edge.session.records import SerialTraffic
 from adaproj_edge.session.writer import SessionWriter
@@ -126,3 +127,15 @@ def test_corrupted_serial_bytes_are_logged_and_projection_goes_on(
     assert not (tmp_path / "out" / "store" / _push_meta()["name"]).exists()
     assert s["states"][-1][1] == "projecting"
     assert s["frames"][-1]["t_s"] > _push_meta()["t_s"] + 1.0
+
+
+def test_the_replay_command_reports_the_link(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["replay", str(PUSH_SESSION), "--out", str(tmp_path), "--no-score"]) == 0
+    out = capsys.readouterr().out
+    assert "serial link: 6 requests (1 refused, 0 bad frames dropped), 1 content activations" in out
+    assert "0 replies differ" in out
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["link"]["content_activations"] == 1
+    assert (tmp_path / "store" / _push_meta()["name"]).exists()
