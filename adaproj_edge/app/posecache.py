@@ -48,14 +48,32 @@ class CachedWarp:
         """Whether the current lattice ``depth`` is the surface this warp was made for:
         valid nodes agree (``min_overlap``) and their median relative depth change is
         below ``max_rel``."""
-        if depth.shape != self.depth.shape:
+        pair = common_nodes(depth, self.depth)
+        if pair is None:
             return False
-        a, b = np.isfinite(depth), np.isfinite(self.depth)
+        now, then = pair
+        a, b = np.isfinite(now), np.isfinite(then)
         both = a & b
         if both.sum() < min_overlap * max(int(a.sum()), int(b.sum()), 1):
             return False
-        rel = np.abs(depth[both] - self.depth[both]) / self.depth[both]
+        rel = np.abs(now[both] - then[both]) / then[both]
         return bool(np.median(rel) <= max_rel)
+
+
+def common_nodes(
+    a: NDArray[np.float64], b: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """Two lattices over the same frame brought to their common nodes: the finer one
+    subsampled when its spacing divides the coarser one's (a surface whose walls were
+    snapped is 4x finer than one whose were not); None when they share no nodes."""
+    if a.shape == b.shape:
+        return a, b
+    fine, coarse = (a, b) if a.size > b.size else (b, a)
+    k = [(f - 1) // max(c - 1, 1) for f, c in zip(fine.shape, coarse.shape, strict=True)]
+    if k[0] < 1 or k[0] != k[1] or fine[:: k[0], :: k[1]].shape != coarse.shape:
+        return None
+    sub = fine[:: k[0], :: k[1]]
+    return (sub, coarse) if a.size > b.size else (coarse, sub)
 
 
 def surface_signature(depth: FloatArray, depth_bin_m: float) -> Key:

@@ -57,7 +57,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.app.motion import MotionSettings, MotionTracker
 from adaproj_edge.app.pipeline import WarpPipeline
-from adaproj_edge.app.posecache import CachedWarp, PoseCache, pose_key
+from adaproj_edge.app.posecache import CachedWarp, PoseCache, common_nodes, pose_key
 from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.errors import AdaprojError, ImageError
 from adaproj_edge.fileio import read_image
@@ -441,11 +441,14 @@ class Runtime:
     def _changed(self, surface: Surface) -> bool:
         if self._shown_depth is None:
             return True
-        z = surface.points[..., 2].astype(np.float64)
-        both = np.isfinite(z) & np.isfinite(self._shown_depth)
+        pair = common_nodes(surface.points[..., 2].astype(np.float64), self._shown_depth)
+        if pair is None:
+            return True
+        z, shown = pair
+        both = np.isfinite(z) & np.isfinite(shown)
         if both.sum() < 0.9 * np.isfinite(z).sum():
             return True
-        rel = np.abs(z[both] - self._shown_depth[both]) / self._shown_depth[both]
+        rel = np.abs(z[both] - shown[both]) / shown[both]
         return bool(np.median(rel) > self.settings.hysteresis_rel)
 
     # ------------------------------------------------------------------ gestures

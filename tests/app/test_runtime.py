@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from adaproj_edge.app.motion import MotionTracker
-from adaproj_edge.app.posecache import CachedWarp, PoseCache, pose_key
+from adaproj_edge.app.posecache import CachedWarp, PoseCache, common_nodes, pose_key
 from adaproj_edge.app.replay import builtin_item
 from adaproj_edge.app.runtime import Item, Runtime, State, mask_content_map
 from adaproj_edge.errors import ImageError
@@ -95,6 +95,20 @@ def test_motion_starts_at_once_and_settles_with_hysteresis() -> None:
     assert len(settled) == 1 and settled[0][1] is False
     assert settled[0][0] >= 0.8e9 + 0.3e9  # not before settle_s of stillness
     assert abs(m.orientation_vector()[0]) > 0.1  # the turn was integrated
+
+
+def test_lattices_of_two_resolutions_compare_at_their_common_nodes() -> None:
+    coarse = np.arange(21 * 21, dtype=np.float64).reshape(21, 21)
+    fine = np.full((81, 81), -1.0)
+    fine[::4, ::4] = coarse
+    for a, b in ((fine, coarse), (coarse, fine)):
+        pair = common_nodes(a, b)
+        assert pair is not None and np.array_equal(pair[0], pair[1])
+    assert common_nodes(np.zeros((30, 30)), coarse) is None  # no common nodes
+    # a cached warp made for the coarse lattice fits the same surface made finer
+    entry = CachedWarp(None, coarse + 1.5, None, None, None, None)  # type: ignore[arg-type]
+    assert entry.matches(np.where(fine < 0, 7.0, fine + 1.5), 0.01, 0.97)
+    assert not entry.matches(np.where(fine < 0, 7.0, fine * 1.1 + 1.5), 0.01, 0.97)
 
 
 def test_pose_cache_is_bounded_and_checks_the_depth() -> None:
