@@ -24,7 +24,6 @@ from adaproj_edge.warp.engine import MODES
 log = logging.getLogger(__name__)
 
 
-
 @dataclass(frozen=True)
 class Settings:
     """How content is shown.
