@@ -73,9 +73,7 @@ def _level_features(g: _Graph, rgb: str, params: gbvs.GBVSParams) -> str:
     resp = g.one("Conv", [padded, "gabor"])
     even = g.one("Slice", [resp, "zero", "k_orient", "one"])
     odd = g.one("Slice", [resp, "k_orient", "two_k_orient", "one"])
-    energy = g.one(
-        "Sqrt", [g.one("Add", [g.one("Mul", [even, even]), g.one("Mul", [odd, odd])])]
-    )
+    energy = g.one("Sqrt", [g.one("Add", [g.one("Mul", [even, even]), g.one("Mul", [odd, odd])])])
     return g.one("Concat", [intensity, *colour, energy], axis=1)
 
 

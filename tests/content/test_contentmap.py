@@ -157,9 +157,7 @@ def test_cache_forgets_the_least_recently_used(model: SaliencyModel) -> None:
     size=st.tuples(st.integers(2, 400), st.integers(2, 400)),
     grid=st.integers(2, 30),
 )
-def test_weights_threshold_the_sampled_map(
-    seed: int, size: tuple[int, int], grid: int
-) -> None:
+def test_weights_threshold_the_sampled_map(seed: int, size: tuple[int, int], grid: int) -> None:
     rng = np.random.default_rng(seed)
     w, h = size
     cw, ch = coarse_size(size, (grid, grid))

@@ -91,9 +91,7 @@ def test_another_model_meeting_the_contract_replaces_the_default(tmp_path: Path)
 
 
 def test_models_breaking_the_contract_are_refused(tmp_path: Path) -> None:
-    two = [
-        helper.make_tensor_value_info(n, TensorProto.FLOAT, [1, 3, 8, 8]) for n in ("a", "b")
-    ]
+    two = [helper.make_tensor_value_info(n, TensorProto.FLOAT, [1, 3, 8, 8]) for n in ("a", "b")]
     path = _write(_tiny_model(two, helper.make_node("Add", ["a", "b"], ["s"])), tmp_path / "2.onnx")
     with pytest.raises(ModelError, match="one input"):
         SaliencyModel(path)

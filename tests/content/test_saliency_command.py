@@ -40,8 +40,16 @@ def test_a_bad_mask_is_a_clear_error(
     image_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     (tmp_path / "bad.png").write_bytes(b"not a png")
-    rc = main(["saliency", str(image_file), "--out", str(tmp_path / "o.png"),
-               "--mask", str(tmp_path / "bad.png")])
+    rc = main(
+        [
+            "saliency",
+            str(image_file),
+            "--out",
+            str(tmp_path / "o.png"),
+            "--mask",
+            str(tmp_path / "bad.png"),
+        ]
+    )
     assert rc == 2
     err = capsys.readouterr().err
     assert "adaproj saliency: error: mask rejected" in err and "bad.png" in err
@@ -51,7 +59,15 @@ def test_a_bad_mask_is_a_clear_error(
 def test_a_missing_model_is_a_clear_error(
     image_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    rc = main(["saliency", str(image_file), "--out", str(tmp_path / "o.png"),
-               "--model", str(tmp_path / "none.onnx")])
+    rc = main(
+        [
+            "saliency",
+            str(image_file),
+            "--out",
+            str(tmp_path / "o.png"),
+            "--model",
+            str(tmp_path / "none.onnx"),
+        ]
+    )
     assert rc == 2
     assert "saliency model not found" in capsys.readouterr().err

@@ -126,8 +126,16 @@ def test_adaproj_link_serves_a_port_path(tmp_path: Path) -> None:
     """``adaproj link --port`` opens the path with pyserial, as on /dev/ttyGS0."""
     with PtyPair.open() as pty:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "adaproj_edge.cli", "link", "--port", pty.path,
-             "--store", str(tmp_path / "store")],
+            [
+                sys.executable,
+                "-m",
+                "adaproj_edge.cli",
+                "link",
+                "--port",
+                pty.path,
+                "--store",
+                str(tmp_path / "store"),
+            ],
             stderr=subprocess.PIPE,
             text=True,
         )
