@@ -349,18 +349,17 @@ def _intersect(
     num, wgt = images.num, images.wgt
     s = np.full(dirs_p.shape[:-1], images.z_usable if images.z_usable is not None else 1.0)
     z_meas = np.full_like(s, np.nan)
-    for _ in range(settings.iterations):
-        x = s[..., None] * a + b
-        with np.errstate(invalid="ignore", divide="ignore"):
-            maps = _maps((x @ K.T)[..., :2] / x[..., 2:3])
-        w = _sample(wgt, maps)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            z_meas = np.where(w > 1e-3, _sample(num, maps) / w, np.nan)
-            s_new = (z_meas - b[2]) / a[..., 2]
-        s = np.where(np.isfinite(s_new) & (s_new > 0), s_new, s)
-    x = s[..., None] * a + b
+    KT, az = K.T, a[..., 2]
     with np.errstate(invalid="ignore", divide="ignore"):
-        maps = _maps((x @ K.T)[..., :2] / x[..., 2:3])
+        for _ in range(settings.iterations):
+            x = s[..., None] * a + b
+            maps = _maps((x @ KT)[..., :2] / x[..., 2:3])
+            w = _sample(wgt, maps)
+            z_meas = np.where(w > 1e-3, _sample(num, maps) / w, np.nan)
+            s_new = (z_meas - b[2]) / az
+            s = np.where(np.isfinite(s_new) & (s_new > 0), s_new, s)
+        x = s[..., None] * a + b
+        maps = _maps((x @ KT)[..., :2] / x[..., 2:3])
     sup_at = _sample(images.sup, maps)
     mask_at = _sample(images.mask, maps)
     with np.errstate(invalid="ignore"):
