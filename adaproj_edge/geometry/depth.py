@@ -409,7 +409,7 @@ def _window_sums(a: FloatArray, kernels: FloatArray, step: int) -> FloatArray:
     nk, width = kernels.shape
     r = width // 2
     m = (n - 1) // step + 1
-    if n <= 3 * width:
+    if n <= 4 * width:
         band = np.zeros((nk, m, n + 2 * r))
         s0, s1, s2 = band.strides  # row i of the band holds the kernel from column i * step
         diag = np.lib.stride_tricks.as_strided(band, (nk, m, width), (s0, s1 + step * s2, s2))
