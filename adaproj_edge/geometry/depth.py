@@ -257,12 +257,13 @@ def _smooth(
     shape = ok.shape
     m = _WORK.get("m", shape, np.float32)
     np.copyto(m, ok)
-    zz = np.multiply(z32, m, out=_WORK.get("zz", shape, np.float32))
+    # scratch of earlier steps is reused once they are done: "med" of _clean, its z32
+    zz = np.multiply(z32, m, out=_WORK.get("med", shape, np.float32))
     num = _WORK.get("num", shape, np.float32)
     den = _WORK.get("den", shape, np.float32)
     cv2.GaussianBlur(zz, (0, 0), sigma_px, dst=num, borderType=cv2.BORDER_CONSTANT)
     cv2.GaussianBlur(m, (0, 0), sigma_px, dst=den, borderType=cv2.BORDER_CONSTANT)
-    zs = _WORK.get("zs", shape, np.float32)
+    zs = _WORK.get("z32", shape, np.float32)  # z32 is used up (zz)
     zs.fill(0.0)
     has = np.greater(den, np.float32(1e-3), out=_WORK.get("has", shape, np.bool_))
     np.divide(num, den, out=zs, where=has)
@@ -285,7 +286,7 @@ def _images(
     wgt = np.multiply(support, usable, out=_WORK.get("wgt", shape, np.float32))
     # float32(zs * support) as before in float64: a product of two float32 is exact there
     num = np.multiply(zs, wgt, out=_WORK.get("inum", shape, np.float32))
-    mask = _WORK.get("mask", shape, np.float32)
+    mask = _WORK.get("m", shape, np.float32)  # the support's weights are used up
     np.copyto(mask, usable)
     return _DepthImages(num, wgt, support, mask, *_medians(zs, usable, has))
 
