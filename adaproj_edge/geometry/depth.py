@@ -507,18 +507,17 @@ def _side_window_fits(
     w00 = mom[0]
     ok = valid & (w00 >= min_weight)
     bq[:, ~ok] = 0.0
-    # the normal equations (A + 1e-9 I) [c | e] = [b | e0] of every scale, window and
-    # node (A = I where there is no fit): one elimination gives the fit c and (A^-1)_00
+    # the normal equations (A + 1e-9 I) c = b of every scale, window and node (A = I
+    # where there is no fit), eliminated last variable first: the last pivot is then
+    # 1 / (A^-1)_00
     n = ok.size
     A = np.take(mom.reshape(15, n), _NORMAL, axis=0, out=_WORK.get("A", (6, 6, n)), mode="clip")
     A[:, :, ~ok.reshape(-1)] = np.eye(6)[:, :, None]
     A[np.arange(6), np.arange(6)] += 1e-9
-    B = _WORK.get("B", (6, 2, n))
-    B[:, 0] = bq.reshape(6, n)
-    B[:, 1] = 0.0
-    B[0, 1] = 1.0
-    sol = _solve_spd(A, B).reshape(6, 2, *shape)
-    coef, a00 = sol[:, 0], sol[0, 1]
+    B = _WORK.get("B", (6, 1, n))
+    B[:, 0] = bq.reshape(6, n)[::-1]
+    coef = _solve_spd(A[::-1, ::-1], B)[::-1, 0].reshape(6, *shape)
+    a00 = (1.0 / A[0, 0]).reshape(shape)
     # weighted residual sum of squares from the moments: S - 2 c.b + c^T A c (A without
     # the 1e-9; where there is no fit c = 0)
     cAc = np.zeros(shape)
