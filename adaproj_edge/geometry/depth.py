@@ -18,7 +18,8 @@ Steps (:func:`estimate_surface`):
    local quadratic fits of inverse depth in side windows, which keep creases, at
    ``smooth_m`` and wider scales, each node taking the widest scale that agrees with
    the narrower ones (:func:`smooth_lattice`), and the requested lattice is taken
-   from it; small holes (not touching the frame border) are filled from their
+   from it (the fits are evaluated at its nodes only; the finer lattice is their
+   data); small holes (not touching the frame border) are filled from their
    neighbours;
 5. every node gets a confidence in [0, 1] from support, the stereo noise expected at
    its depth (grows with z^2), the viewing angle, and whether it was filled.
@@ -382,11 +383,11 @@ _POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))  # the quadratic basi
 # each keeps: 0 = all offsets, 1 = offsets <= 0, 2 = offsets >= 0
 _HALVES = ((0, 0), (1, 0), (2, 0), (0, 1), (0, 2))
 _MOMENTS = tuple((a, b) for a in range(5) for b in range(5 - a))  # x^a y^b, a + b <= 4
-# entry (i, j) of the normal matrix: the moment of the product of basis functions i, j
 _MOMENT_A, _MOMENT_B = np.array(_MOMENTS).T
 _POWER_A, _POWER_B = np.array(_POWERS).T
 # the x half of the whole, left, right windows; the y half of the up, down ones
 _HX, _HY = np.arange(3), np.arange(2)
+# entry (i, j) of the normal matrix: the moment of the product of basis functions i, j
 _NORMAL = np.array([[_MOMENTS.index((a + c, b + d)) for c, d in _POWERS] for a, b in _POWERS])
 
 
@@ -431,8 +432,8 @@ def _window_moments(
     ``imgs`` (rows, cols, 3) holds m, m q and m q^2; written are ``mom`` (15, 5, ny, nx),
     the sums of m x^a y^b (:data:`_MOMENTS`), ``bq`` (6, 5, ny, nx), of m q x^a y^b
     (:data:`_POWERS`), and ``sqq`` (5, ny, nx), of m q^2; returns sum(w^2) / sum(w) of
-    the weights of each window (5,). The weights are separable, so
-    each sum is ``Ky @ img @ Kx.T`` with banded ``Kx``, ``Ky`` (:func:`_window_sums`).
+    the weights of each window (5,). The weights are separable, so each sum is
+    ``Ky @ img @ Kx.T`` with banded ``Kx``, ``Ky`` (:func:`_window_sums`).
     """
     rows, cols, _ = imgs.shape
     ny, nx = (rows - 1) // step + 1, (cols - 1) // step + 1
