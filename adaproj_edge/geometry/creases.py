@@ -106,9 +106,15 @@ def unfold_creases(
         return unfolding
     # the plane of each vertex: area-weighted normal of its smooth triangles
     smooth = ~rough & np.all(np.isfinite(n), axis=1)
-    acc = np.zeros((points.shape[0], 3))
-    for k in range(3):
-        np.add.at(acc, tris[smooth, k], n[smooth] * size[smooth, None] ** 2)
+    weighted = n[smooth] * size[smooth, None] ** 2  # (S, 3), added at each corner
+    corners = tris[smooth].ravel()  # (3 S,): corner k of triangle t at 3 t + k
+    acc = np.stack(
+        [
+            np.bincount(corners, np.repeat(weighted[:, c], 3), minlength=points.shape[0])
+            for c in range(3)
+        ],
+        axis=1,
+    )
     with np.errstate(invalid="ignore", divide="ignore"):
         vn = acc / np.linalg.norm(acc, axis=1, keepdims=True)
     # only triangles whose corners' planes differ can hold a crease (checked for all
