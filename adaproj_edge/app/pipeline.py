@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections import defaultdict
+from collections import deque
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -55,11 +55,15 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class StageTimes:
-    """Wall-clock seconds per stage, for the summary and the benchmark."""
+    """Wall-clock seconds per stage, for the summary and the benchmark: the last
+    ``keep`` samples of each stage."""
 
-    samples: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
+    keep: int = 20000
+    samples: dict[str, deque[float]] = field(default_factory=dict)
 
     def add(self, stage: str, seconds: float) -> None:
+        if stage not in self.samples:
+            self.samples[stage] = deque(maxlen=self.keep)
         self.samples[stage].append(seconds)
 
     def summary(self) -> dict[str, dict[str, float]]:
@@ -205,6 +209,7 @@ class WarpPipeline:
     caching : keep mesh topologies and solver structures between updates
     refine_factor : the content-aware grid is this many times coarser than ``grid``
         (1: refine on the full grid)
+    history : stage-time samples kept per stage
     """
 
     def __init__(
@@ -215,6 +220,7 @@ class WarpPipeline:
         warm_start: bool = True,
         caching: bool = True,
         refine_factor: int = 2,
+        history: int = 20000,
     ) -> None:
         self.projector = projector
         self.grid = grid or Grid()
@@ -223,9 +229,8 @@ class WarpPipeline:
         self.refine_factor = refine_factor
         self.warm_rel = 0.01  # a solution warm-starts surfaces within 1 % depth
         self.warp_cache: WarpCache | None = WarpCache() if caching else None
-        self.times = StageTimes()
+        self.times = StageTimes(history)
         self.last: Solution | None = None
-        self.iterations: list[int] = []
         self.rows = coarse_indices(self.grid.rows, refine_factor)
         self.cols = coarse_indices(self.grid.cols, refine_factor)
         self.coarse_grid = Grid(cols=self.cols.size - 1, rows=self.rows.size - 1)
@@ -329,7 +334,6 @@ class WarpPipeline:
             v, _ = FAST.content_free(mesh, FAST.conformal(mesh), settings.lam)
             placement = place(mesh, v, content_map.content_size, settings.up)
         v, placement, its, frac = refine(mesh, v, placement, content_map, settings, FAST)
-        self.iterations.append(its)
         self.last = Solution(v, placement, mesh.verts.copy(), its, replace(start, depth=depth))
         coarse_xy = np.full((to_fine.size, 2), np.nan)
         coarse_xy[mesh.verts] = placement.apply(v)

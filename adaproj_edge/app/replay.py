@@ -32,6 +32,7 @@ import os
 import resource
 import shutil
 import tempfile
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -349,8 +350,8 @@ def _replay(
                 rt.on_depth_error("the OAK-D stopped sending depth (injected disconnect)")
             else:
                 rt.on_depth(rec)
-                if scorer is not None and pose is not None and len(rt.updates) > scored:
-                    scored = len(rt.updates)
+                if scorer is not None and pose is not None and rt.update_count > scored:
+                    scored = rt.update_count
                     if rt.updates[-1]["kind"] == "content-aware":
                         scorer.score(pose)
         elif isinstance(rec, ButtonEvent):
@@ -376,7 +377,7 @@ def _rel(t_ns: int, t0: int) -> float:
     return round((t_ns - t0) / 1e9, 4)
 
 
-def _timed(items: list[dict[str, Any]], t0: int) -> list[dict[str, Any]]:
+def _timed(items: Iterable[dict[str, Any]], t0: int) -> list[dict[str, Any]]:
     """``items`` with ``t_ns`` replaced by ``t_s``, seconds from the session start."""
     return [
         {"t_s": _rel(x["t_ns"], t0), **{k: v for k, v in x.items() if k != "t_ns"}} for x in items

@@ -46,6 +46,7 @@ import enum
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -110,6 +111,7 @@ class AppSettings:
     refine_factor: int = 2  # the content-aware grid is this many times coarser
     refine_iterations: int = 6  # per update; the next refinement goes on from there
     keep_shown_map: bool = False  # keep the float map of the frame shown (for scoring)
+    history: int = 20000  # events, updates and stage times kept (oldest dropped first)
     orientation_bin_rad: float = 0.03
     depth_bin_m: float = 0.03
     motion: MotionSettings = field(default_factory=MotionSettings)
@@ -187,7 +189,13 @@ class Runtime:
         self.state_dir = state_dir
         self.motion = MotionTracker(calibration.R_P_I, s.motion)
         self.pipeline = WarpPipeline(
-            calibration.projector, s.grid, s.map_scale, s.warm_start, s.caching, s.refine_factor
+            calibration.projector,
+            s.grid,
+            s.map_scale,
+            s.warm_start,
+            s.caching,
+            s.refine_factor,
+            s.history,
         )
         self.pose_cache = PoseCache(s.pose_cache_size if s.caching else 0)
         self.filter = SurfaceFilter()
@@ -195,10 +203,12 @@ class Runtime:
         self.plain = False
         self.faults: dict[str, str] = {}
         self.errors: list[str] = []
-        self.events: list[dict[str, Any]] = []
-        self.states: list[tuple[int, str]] = []
-        self.updates: list[dict[str, Any]] = []
-        self.latencies_ms: list[float] = []
+        # the recent history, for status and replays (bounded: the device runs for days)
+        self.events: deque[dict[str, Any]] = deque(maxlen=s.history)
+        self.states: deque[tuple[int, str]] = deque(maxlen=s.history)
+        self.updates: deque[dict[str, Any]] = deque(maxlen=s.history)
+        self.latencies_ms: deque[float] = deque(maxlen=s.history)
+        self.update_count = 0
         self.counters = {
             "content_free": 0,
             "content_aware": 0,
@@ -567,6 +577,7 @@ class Runtime:
         if self._motion_ns is not None:
             self.latencies_ms.append((self._now() - self._motion_ns) / 1e6 + elapsed * 1e3)
             self._motion_ns = None
+        self.update_count += 1
         self.updates.append(
             {
                 "t_ns": self._now(),

@@ -13,7 +13,7 @@ import pytest
 from adaproj_edge.app.motion import MotionTracker
 from adaproj_edge.app.posecache import CachedWarp, PoseCache, common_nodes, pose_key
 from adaproj_edge.app.replay import builtin_item
-from adaproj_edge.app.runtime import Item, Runtime, State, mask_content_map
+from adaproj_edge.app.runtime import AppSettings, Item, Runtime, State, mask_content_map
 from adaproj_edge.errors import ImageError
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.button import ButtonEvent
@@ -156,6 +156,20 @@ def test_a_still_hand_gives_a_still_image(still_records: list[object]) -> None:
     # the capture, then at most one re-warp as the average of more frames settles
     assert 1 <= len(rt.updates) <= 2, rt.updates
     assert rt.counters["estimates"] >= 8
+
+
+def test_the_history_the_runtime_keeps_is_bounded(still_records: list[object]) -> None:
+    # the device runs for days: events, updates and stage times keep the latest only
+    clock = VirtualClock(1_000 * MS)
+    display = MemoryDisplay(CAL.projector.width, CAL.projector.height)
+    settings = AppSettings(history=3, refine_at_frames=(3, 4, 5, 6, 7, 8))
+    rt = Runtime(CAL, display, clock, [builtin_item()], settings, mask_content_map)
+    rt.boot()
+    _feed(rt, clock, still_records)
+    assert rt.update_count > 3 and len(rt.updates) == 3
+    assert len(rt.events) <= 3 and len(rt.states) <= 3
+    assert all(len(v) <= 3 for v in rt.pipeline.times.samples.values())
+    assert rt.pipeline.times.summary()["render"]["n"] == 3
 
 
 def test_faults_keep_the_frame_mark_it_and_clear(still_records: list[object]) -> None:
