@@ -126,10 +126,14 @@ def small_layout(grid_uv: FloatArray, projector: Projector, factor: int) -> Pixe
     return PixelLayout.build((grid_uv + 0.5) / max(factor, 1) - 0.5, small)
 
 
-def remap_maps(weights: PixelWeights, warp: Warp) -> RemapMaps:
-    """The renderer's maps of ``warp`` through the reduced-resolution ``weights``."""
+def remap_maps(
+    weights: PixelWeights, warp: Warp, scratch: NDArray[np.float32] | None = None
+) -> RemapMaps:
+    """The renderer's maps of ``warp`` through the reduced-resolution ``weights``
+    (``scratch``: a reusable full-resolution float buffer, see RemapMaps.upsampled)."""
     small = weights.map(warp.image_xy, warp.content_size, clip=False)
-    return RemapMaps.upsampled(small, (warp.projector.width, warp.projector.height))
+    size = (warp.projector.width, warp.projector.height)
+    return RemapMaps.upsampled(small, size, scratch)
 
 
 def coarse_indices(cells: int, factor: int) -> NDArray[np.intp]:
@@ -236,6 +240,8 @@ class WarpPipeline:
         self.coarse_grid = Grid(cols=self.cols.size - 1, rows=self.rows.size - 1)
         self._grid_uv = self.grid.vertices(projector)
         self._layout = small_layout(self._grid_uv, projector, map_scale)
+        # the full-resolution float map on its way to the fixed-point maps, reused
+        self._scratch = np.empty((projector.height, projector.width, 2), np.float32)
 
     def _weights(self, warp: Warp) -> PixelWeights:
         same = warp.grid_uv.shape == self._grid_uv.shape and np.array_equal(
@@ -254,7 +260,7 @@ class WarpPipeline:
     def maps(self, warp: Warp) -> RemapMaps:
         """The renderer's maps for any warp (one loaded at boot, say)."""
         with self.timer("map"):
-            return remap_maps(self._weights(warp), warp)
+            return remap_maps(self._weights(warp), warp, self._scratch)
 
     def plain(self, content_size: tuple[int, int]) -> tuple[Warp, RemapMaps]:
         """The content letterboxed on the frame (no pre-warp)."""
@@ -282,7 +288,7 @@ class WarpPipeline:
         """The renderer's maps of a content-free warp (made once per entry)."""
         if entry.maps is None:
             with self.timer("map"):
-                entry.maps = remap_maps(entry.pixels, entry.warp)
+                entry.maps = remap_maps(entry.pixels, entry.warp, self._scratch)
         return entry.maps
 
     def content_aware(
@@ -298,7 +304,7 @@ class WarpPipeline:
         with self.timer("content_aware"):
             warp = self._refine(surface, content_map, settings, start)
         with self.timer("map"):
-            maps = remap_maps(start.pixels, warp)
+            maps = remap_maps(start.pixels, warp, self._scratch)
         return warp, maps
 
     def _refine(

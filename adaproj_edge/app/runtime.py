@@ -227,6 +227,7 @@ class Runtime:
         self.surface: Surface | None = None
         self._maps: RemapMaps | None = None
         self._good: Image | None = None
+        self._canvas: Image | None = None
         self._cf: CachedWarp | None = None
         self._shown_depth: NDArray[np.float64] | None = None
         self._refine_pending = False
@@ -586,6 +587,7 @@ class Runtime:
                 "cache_hit": hit,
                 "iterations": its,
                 "probes": _probes(warp),
+                "update_ms": round((t_end - t_update) * 1e3, 3),  # wall clock: not a decision
             }
         )
 
@@ -602,7 +604,8 @@ class Runtime:
         if self._maps is None:
             return None
         with self.pipeline.timer("render"):
-            frame = render_frame(self.item.image, self._maps)
+            frame = render_frame(self.item.image, self._maps, self._canvas)
+            self._canvas = frame  # drawn into again next time
             if frame.ndim == 2:
                 frame = np.asarray(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR), np.uint8)
         self._good = frame

@@ -52,7 +52,10 @@ class MemoryDisplay:
 
     def show(self, frame: Frame) -> None:
         _check_frame(frame, self._size)
-        self.last = frame.copy()
+        if self.last is not None and self.last.shape == frame.shape:
+            np.copyto(self.last, frame)  # one buffer: no fresh pages for every frame
+        else:
+            self.last = frame.copy()
         self.count += 1
 
     def close(self) -> None:
