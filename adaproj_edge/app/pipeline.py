@@ -282,7 +282,8 @@ class WarpPipeline:
             warp = make_warp(mesh, v, placement, surface, content_size, settings, 0, 0.0, {})
             pixels = self._weights(warp)
         depth = surface.points[..., 2].astype(np.float64)
-        return CachedWarp(warp, depth, v, placement, mesh.verts.copy(), pixels)
+        frames = int(surface.meta.get("frames", 1))
+        return CachedWarp(warp, depth, v, placement, mesh.verts.copy(), pixels, frames=frames)
 
     def content_free_maps(self, entry: CachedWarp) -> RemapMaps:
         """The renderer's maps of a content-free warp (made once per entry)."""

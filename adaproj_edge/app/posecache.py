@@ -43,15 +43,15 @@ class CachedWarp:
     verts: NDArray[np.intp]
     pixels: PixelWeights
     maps: RemapMaps | None = None
+    frames: int = 1  # depth frames averaged into the surface it was made from
 
     def matches(self, depth: FloatArray, max_rel: float, min_overlap: float) -> bool:
         """Whether the current lattice ``depth`` is the surface this warp was made for:
         valid nodes agree (``min_overlap``) and their median relative depth change is
         below ``max_rel``."""
-        pair = common_nodes(depth, self.depth)
-        if pair is None:
+        if depth.shape != self.depth.shape:  # e.g. walls snapped on one, not the other
             return False
-        now, then = pair
+        now, then = depth, self.depth
         a, b = np.isfinite(now), np.isfinite(then)
         both = a & b
         if both.sum() < min_overlap * max(int(a.sum()), int(b.sum()), 1):
@@ -65,7 +65,7 @@ def common_nodes(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     """Two lattices over the same frame brought to their common nodes: the finer one
     subsampled when its spacing divides the coarser one's (a surface whose walls were
-    snapped is 4x finer than one whose were not); None when they share no nodes."""
+    snapped is 8x finer than one whose were not); None when they share no nodes."""
     if a.shape == b.shape:
         return a, b
     fine, coarse = (a, b) if a.size > b.size else (b, a)
@@ -105,25 +105,48 @@ class PoseCache:
         self.hits = 0
         self.misses = 0
         self.rejected = 0
+        self.found_by_surface = 0
 
     def __len__(self) -> int:
         return len(self._items)
 
     def get(
-        self, key: Key, depth: FloatArray, max_rel: float = 0.01, min_overlap: float = 0.97
+        self,
+        key: Key,
+        depth: FloatArray,
+        max_rel: float = 0.01,
+        min_overlap: float = 0.97,
+        min_frames: int = 0,
     ) -> CachedWarp | None:
-        """The entry for ``key`` if it fits the current ``depth``; counts the outcome."""
+        """The entry for ``key`` if it fits the current ``depth``, else any entry that
+        does (most recent first; it is filed under ``key`` from then on); counts the
+        outcome.
+
+        The key is where to look first: a pose whose orientation or depth signature sits
+        near a bin edge gets another key from one estimate to the next, and is still
+        found by its surface (with the few entries kept, checking them all costs well
+        under a millisecond). The surface alone decides the content-free warp (the
+        runtime's "up" is the projector's), so a surface match is a warp match.
+        Entries made from fewer than ``min_frames`` averaged depth frames are passed
+        over (a noisier surface than the current one) but kept."""
         item = self._items.get(key)
-        if item is None:
-            self.misses += 1
-            return None
-        if not item.matches(depth, max_rel, min_overlap):
+        if item is not None and item.frames >= min_frames:
+            if item.matches(depth, max_rel, min_overlap):
+                self._items.move_to_end(key)
+                self.hits += 1
+                return item
             self.rejected += 1
             del self._items[key]
-            return None
-        self._items.move_to_end(key)
-        self.hits += 1
-        return item
+        for other in reversed(list(self._items)):
+            cand = self._items[other]
+            if cand.frames >= min_frames and cand.matches(depth, max_rel, min_overlap):
+                del self._items[other]
+                self._items[key] = cand
+                self.hits += 1
+                self.found_by_surface += 1
+                return cand
+        self.misses += 1
+        return None
 
     def put(self, key: Key, item: CachedWarp) -> None:
         if self.size <= 0:

@@ -48,7 +48,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -63,7 +63,12 @@ from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.errors import AdaprojError, ImageError
 from adaproj_edge.fileio import read_image
 from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.geometry.depth import DepthSettings, SurfaceFilter, estimate_surface
+from adaproj_edge.geometry.depth import (
+    DepthSettings,
+    SurfaceEstimate,
+    SurfaceFilter,
+    estimate_surface,
+)
 from adaproj_edge.geometry.planes import PlaneSettings, snap_planes
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.hal.button import ButtonEvent
@@ -102,6 +107,7 @@ class AppSettings:
     still_interval_s: float = 0.2
     hysteresis_rel: float = 0.004
     refine_at_frames: tuple[int, ...] = (3, 6, 12)
+    settle_frames: int = 3  # depth frames averaged before the refinement once settled
     depth_timeout_s: float = 0.5
     min_coverage: float = 0.3
     pose_cache_size: int = 6
@@ -112,6 +118,7 @@ class AppSettings:
     refine_iterations: int = 6  # per update; the next refinement goes on from there
     keep_shown_map: bool = False  # keep the float map of the frame shown (for scoring)
     history: int = 20000  # events, updates and stage times kept (oldest dropped first)
+    cache_match_rel: float = 0.01  # a cached warp serves surfaces this close (median depth)
     orientation_bin_rad: float = 0.03
     depth_bin_m: float = 0.03
     motion: MotionSettings = field(default_factory=MotionSettings)
@@ -417,21 +424,25 @@ class Runtime:
             return
         if moving:
             cur = self.filter.update(est, still=False)
-            self._update(self._walls(cur.surface), refine=False, reason="moving", t_start=t_start)
+            self._update(self._prepared(cur), refine=False, reason="moving", t_start=t_start)
             self._refine_pending = True
             return
         cur = self.filter.update(est, still=True)
+        if self._refine_pending and cur.frames < s.settle_frames:
+            return  # settled: the refinement waits for a few averaged frames
         # the average gets better the longer the hand holds still: refine again a few
         # times as it does (not at every frame), otherwise only on a real change
         better = cur.frames in s.refine_at_frames and cur.frames > self._shown_frames
         if self._refine_pending or better or self._changed(cur.surface):
             reason = "settled" if self._refine_pending else "averaged" if better else "changed"
-            self._update(self._walls(cur.surface), refine=True, reason=reason, t_start=t_start)
+            self._update(self._prepared(cur), refine=True, reason=reason, t_start=t_start)
             self._shown_frames = cur.frames
             self._refine_pending = False
 
-    def _walls(self, surface: Surface) -> Surface:
-        """``surface`` with its large planar pieces snapped onto their planes."""
+    def _prepared(self, est: SurfaceEstimate) -> Surface:
+        """The surface of the (averaged) estimate, its large planar pieces snapped onto
+        their planes, with the number of depth frames averaged in its ``meta``."""
+        surface = replace(est.surface, meta={**est.surface.meta, "frames": est.frames})
         if self.settings.planes is None:
             return surface
         with self.pipeline.timer("planes"):
@@ -488,7 +499,7 @@ class Runtime:
             return
         self._set_state(State.PROJECTING)
         self._refine_pending = self.motion.moving
-        self._update(self._walls(cur.surface), refine=True, reason="capture", t_start=t_start)
+        self._update(self._prepared(cur), refine=True, reason="capture", t_start=t_start)
         self._shown_frames = cur.frames
 
     def _reshow(self, reason: str) -> None:
@@ -530,7 +541,13 @@ class Runtime:
         )
         try:
             t_lookup = time.perf_counter()
-            cf = self.pose_cache.get(key, depth) if self.settings.caching else None
+            # a refinement only builds on a warp from a surface averaged at least as long
+            frames = int(surface.meta.get("frames", 1)) if refine else 0
+            cf = (
+                self.pose_cache.get(key, depth, self.settings.cache_match_rel, min_frames=frames)
+                if self.settings.caching
+                else None
+            )
             hit = cf is not None
             lookup = time.perf_counter() - t_lookup
             self.pipeline.times.add("cache_hit" if hit else "cache_lookup", lookup)

@@ -105,22 +105,30 @@ def test_lattices_of_two_resolutions_compare_at_their_common_nodes() -> None:
         pair = common_nodes(a, b)
         assert pair is not None and np.array_equal(pair[0], pair[1])
     assert common_nodes(np.zeros((30, 30)), coarse) is None  # no common nodes
-    # a cached warp made for the coarse lattice fits the same surface made finer
+    # but a warp made from the unsnapped (noisier) lattice never serves a snapped one
     entry = CachedWarp(None, coarse + 1.5, None, None, None, None)  # type: ignore[arg-type]
-    assert entry.matches(np.where(fine < 0, 7.0, fine + 1.5), 0.01, 0.97)
-    assert not entry.matches(np.where(fine < 0, 7.0, fine * 1.1 + 1.5), 0.01, 0.97)
+    assert entry.matches(coarse + 1.5, 0.01, 0.97)
+    assert not entry.matches(np.where(fine < 0, 7.0, fine + 1.5), 0.01, 0.97)
 
 
 def test_pose_cache_is_bounded_and_checks_the_depth() -> None:
     depth = np.full((21, 21), 1.5)
-    entry = CachedWarp(None, depth, None, None, None, None)  # type: ignore[arg-type]
+
+    def entry(scale: float) -> CachedWarp:
+        return CachedWarp(None, depth * scale, None, None, None, None)  # type: ignore[arg-type]
+
     cache = PoseCache(2)
-    for k in range(3):
-        cache.put((k,), entry)
+    entries = [entry(1.0 + 0.1 * k) for k in range(3)]
+    for k, e in enumerate(entries):
+        cache.put((k,), e)
     assert len(cache) == 2 and cache.get((0,), depth) is None  # the oldest went
-    assert cache.get((2,), depth) is entry
+    assert cache.get((2,), depth * 1.2) is entries[2]
     assert cache.get((1,), depth * 1.05) is None  # same key, another surface: rejected
-    assert (cache.hits, cache.misses, cache.rejected) == (1, 1, 1)
+    assert (cache.hits, cache.misses, cache.rejected) == (1, 2, 1)
+    # a pose whose key changed (a bin edge) is found by its surface, and refiled
+    assert cache.get((9,), depth * 1.201) is entries[2]
+    assert cache.found_by_surface == 1 and cache.get((9,), depth * 1.2) is entries[2]
+    assert len(cache) == 1
     o = np.array([0.0, 0.0, 0.0])
     assert pose_key(o, depth, 0.03, 0.03) != pose_key(o + 0.05, depth, 0.03, 0.03)
     assert pose_key(o, depth, 0.03, 0.03) != pose_key(o, depth + 0.1, 0.03, 0.03)
