@@ -39,7 +39,7 @@ def test_a_wall_corner_becomes_its_two_walls(corner: str | Corner, seed: int) ->
     s = noisy(corner, seed)
     snapped, planes = snap_planes(s)
     assert len(planes) == 2
-    assert snapped.shape == (81, 81)  # 4x finer: the crease lies where it is
+    assert snapped.shape == (161, 161)  # 8x finer: the crease lies where it is
     want = truth(corner, snapped.shape)
     got = snapped.points.astype(np.float64)
     err = np.abs(got[..., 2] - want[..., 2])

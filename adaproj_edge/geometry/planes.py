@@ -176,7 +176,7 @@ def _plane_depth(rays: FloatArray, plane: Plane) -> FloatArray:
 
 
 def snap_planes(
-    surface: Surface, settings: PlaneSettings | None = None, factor: int = 4
+    surface: Surface, settings: PlaneSettings | None = None, factor: int = 8
 ) -> tuple[Surface, list[Plane]]:
     """``surface`` with its large planar pieces replaced by their planes; the pieces.
 
