@@ -238,6 +238,7 @@ class Runtime:
         self._cf: CachedWarp | None = None
         self._shown_depth: NDArray[np.float64] | None = None
         self._refine_pending = False
+        self._settle_prepared = False
         self._shown_frames = 0
         self._captured = 0
         self._capture_ns = 0
@@ -336,6 +337,7 @@ class Runtime:
             self._event("settled")
             self.filter.reset()
             self._refine_pending = True
+            self._settle_prepared = False
 
     def on_imu_error(self, message: str) -> None:
         self.motion.reset_window()
@@ -399,7 +401,14 @@ class Runtime:
             return
         s = self.settings
         if self.state == State.PROJECTING and self._last_estimate_ns is not None:
-            interval = s.moving_interval_s if self.motion.moving else s.still_interval_s
+            # every frame while a settled refinement is on its way (it needs a few)
+            interval = (
+                s.moving_interval_s
+                if self.motion.moving
+                else 0.0
+                if self._refine_pending
+                else s.still_interval_s
+            )
             if now - self._last_estimate_ns < interval * 1e9 - 1e6:
                 self.counters["skipped_frames"] += 1
                 return
@@ -426,10 +435,17 @@ class Runtime:
             cur = self.filter.update(est, still=False)
             self._update(self._prepared(cur), refine=False, reason="moving", t_start=t_start)
             self._refine_pending = True
+            self._settle_prepared = False
             return
         cur = self.filter.update(est, still=True)
-        if self._refine_pending and cur.frames < s.settle_frames:
-            return  # settled: the refinement waits for a few averaged frames
+        if self._refine_pending:
+            if cur.frames < s.settle_frames:
+                return  # settled: the refinement waits for a few averaged frames
+            if s.caching and not self._settle_prepared and self._refines():
+                # this frame makes the content-free warp of the average (into the pose
+                # cache); the next one refines on it: two steps, each within a frame
+                self._prepare(self._prepared(cur))
+                return
         # the average gets better the longer the hand holds still: refine again a few
         # times as it does (not at every frame), otherwise only on a real change
         better = cur.frames in s.refine_at_frames and cur.frames > self._shown_frames
@@ -499,6 +515,7 @@ class Runtime:
             return
         self._set_state(State.PROJECTING)
         self._refine_pending = self.motion.moving
+        self._settle_prepared = False
         self._update(self._prepared(cur), refine=True, reason="capture", t_start=t_start)
         self._shown_frames = cur.frames
 
@@ -518,6 +535,59 @@ class Runtime:
             max_iterations=self.settings.refine_iterations,
         )
 
+    def _refines(self) -> bool:
+        """Whether updates of the current item run the content-aware refinement."""
+        item = self.item
+        return not self.plain and item.settings.mode == "content" and item.content_map is not None
+
+    def _prepare(self, surface: Surface) -> None:
+        """The content-free warp of ``surface`` into the pose cache (nothing shown)."""
+        self._settle_prepared = True
+        with self.pipeline.timer("prepare"):
+            try:
+                self._content_free(surface, refine=True)
+            except AdaprojError as e:
+                self._fault("warp", f"no warp for this surface: {e}")
+
+    def _content_free(self, surface: Surface, refine: bool) -> tuple[CachedWarp, bool]:
+        """The content-free warp of ``surface``: from the pose cache when the pose was
+        seen (for a refinement: from a surface averaged about as long), else solved and
+        cached. Returns it and whether it was a cache hit."""
+        item = self.item
+        depth = surface.points[..., 2].astype(np.float64)
+        key = (
+            pose_key(
+                self.motion.orientation_vector(),
+                depth,
+                self.settings.orientation_bin_rad,
+                self.settings.depth_bin_m,
+            )
+            + item.size
+        )
+        t_lookup = time.perf_counter()
+        # a refinement builds only on a warp from an averaged surface, never on a
+        # single-frame one from while the hand moved (2-4x the distortion)
+        frames = int(surface.meta.get("frames", 1)) if refine else 0
+        min_frames = min(frames, self.settings.settle_frames)
+        cf = (
+            self.pose_cache.get(key, depth, self.settings.cache_match_rel, min_frames=min_frames)
+            if self.settings.caching
+            else None
+        )
+        hit = cf is not None
+        self.pipeline.times.add(
+            "cache_hit" if hit else "cache_lookup", time.perf_counter() - t_lookup
+        )
+        if cf is not None:
+            self.counters["cache_hits"] += 1
+        else:
+            self.counters["cache_misses"] += 1
+            cf = self.pipeline.content_free(surface, item.size, self._warp_settings())
+            self.counters["content_free"] += 1
+            self.pose_cache.put(key, cf)
+        self.counters["cache_rejected"] = self.pose_cache.rejected
+        return cf, hit
+
     def _update(
         self, surface: Surface, refine: bool, reason: str, t_start: float | None = None
     ) -> None:
@@ -530,35 +600,8 @@ class Runtime:
             return
         settings = self._warp_settings()
         depth = surface.points[..., 2].astype(np.float64)
-        key = (
-            pose_key(
-                self.motion.orientation_vector(),
-                depth,
-                self.settings.orientation_bin_rad,
-                self.settings.depth_bin_m,
-            )
-            + item.size
-        )
         try:
-            t_lookup = time.perf_counter()
-            # a refinement only builds on a warp from a surface averaged at least as long
-            frames = int(surface.meta.get("frames", 1)) if refine else 0
-            cf = (
-                self.pose_cache.get(key, depth, self.settings.cache_match_rel, min_frames=frames)
-                if self.settings.caching
-                else None
-            )
-            hit = cf is not None
-            lookup = time.perf_counter() - t_lookup
-            self.pipeline.times.add("cache_hit" if hit else "cache_lookup", lookup)
-            if cf is not None:
-                self.counters["cache_hits"] += 1
-            else:
-                self.counters["cache_misses"] += 1
-                cf = self.pipeline.content_free(surface, item.size, settings)
-                self.counters["content_free"] += 1
-                self.pose_cache.put(key, cf)
-            self.counters["cache_rejected"] = self.pose_cache.rejected
+            cf, hit = self._content_free(surface, refine)
             if refine and item.content_map is not None and item.settings.mode == "content":
                 warp, maps = self.pipeline.content_aware(surface, item.content_map, settings, cf)
                 kind, its = "content-aware", int(warp.meta["iterations"])

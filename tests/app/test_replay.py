@@ -38,7 +38,7 @@ def test_the_device_projects_and_follows_motion(name: str) -> None:
     kinds = [u["kind"] for u in s["updates"]]
     assert kinds[0] == "content-aware"
     assert "content-free" in kinds  # the quick result while moving
-    assert s["counters"]["content_aware"] >= 2  # refined again once settled
+    assert s["counters"]["content_aware"] >= 2  # the capture and the re-aim (second press)
 
 
 def _displayed_vs_truth(name: str) -> list[tuple[float, float]]:

@@ -180,6 +180,24 @@ def test_the_history_the_runtime_keeps_is_bounded(still_records: list[object]) -
     assert rt.pipeline.times.summary()["render"]["n"] == 3
 
 
+def test_once_settled_the_refinement_builds_on_an_averaged_content_free_warp() -> None:
+    # still 1 s, move 0.8 s, still again: the refinement after the move waits for 3
+    # averaged frames, makes their content-free warp on one depth frame (nothing
+    # shown), and refines on it, from the pose cache, on the next
+    hand = HandMotion(3.2, seed=3, still_s=1.0, move_s=0.8)
+    settings = SimulationSettings(seconds=3.2, depth_fps=15.0, seed=3, presses=(0.1,), motion=hand)
+    rt, clock, _ = _runtime()
+    _feed(rt, clock, list(simulate(Scene.load("cylinder-convex"), CAL, settings)))
+    settled = [e["t_ns"] for e in rt.events if e["event"] == "settled"]
+    assert settled
+    after = [u for u in rt.updates if u["t_ns"] > settled[-1]]
+    assert after and after[0]["reason"] == "settled"
+    assert after[0]["kind"] == "content-aware" and after[0]["cache_hit"] is True
+    assert rt.pipeline.times.summary()["prepare"]["n"] >= 1
+    # the first settled frame is about 4 depth frames (at 15 a second) after settling
+    assert 3 * MS * 66 <= after[0]["t_ns"] - settled[-1] <= 6 * MS * 67
+
+
 def test_faults_keep_the_frame_mark_it_and_clear(still_records: list[object]) -> None:
     rt, clock, display = _runtime()
     _feed(rt, clock, still_records)
