@@ -271,7 +271,8 @@ class WarpPipeline:
     def content_free(
         self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
     ) -> CachedWarp:
-        """E' = E_a + lambda E_r for ``surface`` (paper eq. 7), with its display maps."""
+        """E' = E_a + lambda E_r for ``surface`` (paper eq. 7), with the pixel weights of
+        its mesh (its own display maps are made when it is first shown)."""
         settings = replace(settings, grid=self.grid)
         with self.timer("content_free"):
             surface.check_usable()
