@@ -102,10 +102,7 @@ def display_map(warp: Warp, factor: int) -> NDArray[np.float32]:
     p = warp.projector
     if factor <= 1:
         return map_from_warp(warp)
-    small = scaled_projector(p, factor)
-    grid_uv = (warp.grid_uv + 0.5) / factor - 0.5
-    coarse = Warp(grid_uv, warp.image_xy, warp.content_size, small, warp.meta, depth=warp.depth)
-    m = map_from_warp(coarse)
+    m = small_weights(warp, factor).map(warp.image_xy, warp.content_size)
     # align pixel centres: full-res pixel x sits at (x + 0.5) / factor - 0.5 coarse
     big = cv2.resize(m, (p.width, p.height), interpolation=cv2.INTER_LINEAR)
     return np.asarray(big, dtype=np.float32)
