@@ -18,7 +18,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     from adaproj_edge import commands
 
-    for register in commands.REGISTRY:
+    for register in commands.registry():
         register(sub)
     return parser
 

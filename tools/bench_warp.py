@@ -27,9 +27,9 @@ import numpy as np  # noqa: E402
 
 from adaproj_edge.geometry.analytic import simulate_surface  # noqa: E402
 from adaproj_edge.warp.engine import FAST, Backend, WarpSettings, compute_warp  # noqa: E402
-from adaproj_edge.warp.mesh import Grid, Warp  # noqa: E402
-from adaproj_edge.warp.meshgeom import WarpCache  # noqa: E402
+from adaproj_edge.warp.mesh import WarpCache  # noqa: E402
 from adaproj_edge.warp.reference import REFERENCE  # noqa: E402
+from adaproj_edge.warp.warpmap import Grid, Warp  # noqa: E402
 
 CONTENT = (640, 400)
 

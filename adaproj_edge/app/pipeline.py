@@ -39,16 +39,17 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from adaproj_edge.app.posecache import CachedWarp
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import ContentMap
-from adaproj_edge.geometry.projector import FloatArray, Projector
+from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import grid_triangles
 from adaproj_edge.render.frame import RemapMaps
 from adaproj_edge.render.maps import PixelLayout, PixelWeights, map_from_warp
 from adaproj_edge.warp.engine import FAST, WarpSettings, make_warp, refine, standard_warp
-from adaproj_edge.warp.mesh import Grid, Warp
-from adaproj_edge.warp.meshgeom import MeshGeometry, WarpCache
+from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
 from adaproj_edge.warp.placement import Placement, place
+from adaproj_edge.warp.warpmap import Grid, Warp
 
 log = logging.getLogger(__name__)
 

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.render.frame import RemapMaps
 from adaproj_edge.render.maps import PixelWeights
-from adaproj_edge.warp.mesh import Warp
 from adaproj_edge.warp.placement import Placement
+from adaproj_edge.warp.warpmap import Warp
 
 Key = tuple[int, ...]
 

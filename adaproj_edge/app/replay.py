@@ -42,7 +42,8 @@ import numpy as np
 
 from adaproj_edge.app.memory import pin_mmap_threshold
 from adaproj_edge.app.pipeline import WarpPipeline
-from adaproj_edge.app.runtime import AppSettings, Image, Item, Runtime, mask_content_map
+from adaproj_edge.app.runtime import AppSettings, Item, Runtime, mask_content_map
+from adaproj_edge.arrays import Image
 from adaproj_edge.content.builtin import poster, poster_mask
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
 from adaproj_edge.errors import InputError
@@ -56,9 +57,9 @@ from adaproj_edge.link.server import Server
 from adaproj_edge.link.store import ContentStore
 from adaproj_edge.render.sheet import row, stack
 from adaproj_edge.session import schemas
+from adaproj_edge.session.player import Replay
 from adaproj_edge.session.reader import Scan, iter_records
 from adaproj_edge.session.records import SerialTraffic, TruthPose
-from adaproj_edge.session.replay import Replay
 from adaproj_edge.session.simulator import Scene, scene_of_session, true_surface
 from adaproj_edge.warp.engine import WarpSettings, compute_warp
 from adaproj_edge.warp.quality import measure

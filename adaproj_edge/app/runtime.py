@@ -18,7 +18,7 @@ A single press is acted on once the double-press window has passed.
 
 While projecting
 ----------------
-The IMU decides *moving* / *settled* with hysteresis (:mod:`adaproj_edge.app.motion`).
+The IMU decides *moving* / *settled* with hysteresis (:mod:`adaproj_edge.motion.tracker`).
 Moving: the surface is re-estimated at most every ``moving_interval_s`` and the
 content-free warp follows at once (from the pose cache when the pose was seen, checked
 against the current depth). Settled: estimates are averaged over time
@@ -56,9 +56,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from adaproj_edge.app.motion import MotionSettings, MotionTracker
 from adaproj_edge.app.pipeline import WarpPipeline
 from adaproj_edge.app.posecache import CachedWarp, PoseCache, common_nodes, pose_key
+from adaproj_edge.arrays import Image
 from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.errors import AdaprojError, ImageError
 from adaproj_edge.fileio import read_image
@@ -77,13 +77,13 @@ from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.display import Display
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.link.device import Content, Settings
+from adaproj_edge.motion.tracker import MotionSettings, MotionTracker
 from adaproj_edge.render.frame import RemapMaps, render_frame
 from adaproj_edge.warp.engine import WarpSettings
-from adaproj_edge.warp.mesh import Grid, Warp
+from adaproj_edge.warp.warpmap import Grid, Warp
 
 log = logging.getLogger(__name__)
 
-Image = NDArray[np.uint8]
 ContentMapFn = Callable[[Image, NDArray[np.float32] | None, float], ContentMap]
 
 

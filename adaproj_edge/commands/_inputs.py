@@ -15,7 +15,7 @@ from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.analytic import SURFACES, simulate_surface
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.warp.mesh import Grid
+from adaproj_edge.warp.warpmap import Grid
 
 log = logging.getLogger(__name__)
 

@@ -6,16 +6,13 @@ import argparse
 import json
 import logging
 from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 from adaproj_edge.app.replay import ReplayOptions, replay_session
 from adaproj_edge.app.runtime import AppSettings
+from adaproj_edge.resources import default_session
 
 log = logging.getLogger(__name__)
-
-# the built-in default: a committed recording (a hand-held device in front of a column)
-DEFAULT_SESSION = Path(__file__).resolve().parents[2] / "tests/fixtures/sessions/cylinder.mcap"
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -32,7 +29,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument(
         "session",
         nargs="?",
-        default=str(DEFAULT_SESSION),
+        default=str(default_session()),
         help="session file (.mcap); default: the committed cylinder recording",
     )
     p.add_argument("--out", default=None, help="output directory (default: none written)")

@@ -24,7 +24,7 @@ from adaproj_edge.render.project import Projection, project
 from adaproj_edge.render.sheet import row
 from adaproj_edge.render.viewer import Viewer, view
 from adaproj_edge.warp.engine import MODES, WarpSettings
-from adaproj_edge.warp.mesh import Grid
+from adaproj_edge.warp.warpmap import Grid
 
 DEFAULT_VIEWER = (0.8, -0.15, 0.1)
 

@@ -12,8 +12,8 @@ from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
 from adaproj_edge.fileio import read_image, write_png
 from adaproj_edge.render.project import project
 from adaproj_edge.warp.engine import ALTERNATIONS, MODES, WarpSettings
-from adaproj_edge.warp.mesh import Grid
 from adaproj_edge.warp.quality import measure
+from adaproj_edge.warp.warpmap import Grid
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:

@@ -25,14 +25,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.errors import ModelError
+from adaproj_edge.resources import default_model
 
 INPUT_NAME = "image"
 OUTPUT_NAME = "saliency"
 CONTRACT_KEY = "adaproj.contract"
 CONTRACT = "saliency-v1"
 
-DEFAULT_MODEL_PATH = Path(__file__).resolve().parents[2] / "models" / "gbvs_saliency.onnx"
-"""The default model in a checkout (``models/gbvs_saliency.onnx``)."""
+DEFAULT_MODEL_PATH = default_model()
+"""The default model (``models/gbvs_saliency.onnx``, shipped in the package)."""
 
 DEFAULT_INPUT_SIZE = (120, 192)
 """(H, W) given to a model whose input size is symbolic."""

@@ -12,8 +12,9 @@ from typing import Protocol
 
 import numpy as np
 
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
-from adaproj_edge.geometry.projector import FloatArray, Projector
+from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 
 

@@ -31,9 +31,10 @@ from typing import Any
 
 import numpy as np
 
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.fileio import read_input
-from adaproj_edge.geometry.projector import FloatArray, Projector
+from adaproj_edge.geometry.projector import Projector
 
 FORMAT = "adaproj-calibration/1"
 

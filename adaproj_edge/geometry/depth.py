@@ -25,8 +25,8 @@ Steps (:func:`estimate_surface`):
    its depth (grows with z^2), the viewing angle, and whether it was filled.
 
 :class:`SurfaceFilter` averages estimates over time while the device is still
-(:func:`is_still` decides that from IMU samples). Grazing angles, holes and surfaces
-out of range lower coverage and confidence; they never raise.
+(:func:`~adaproj_edge.motion.tracker.is_still` decides that from IMU samples).
+Grazing angles, holes and surfaces out of range lower coverage and confidence; they never raise.
 Pure: arrays in, arrays out.
 """
 
@@ -41,11 +41,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from adaproj_edge.arrays import BoolArray, FloatArray
 from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.geometry.projector import FloatArray, Projector
+from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
-
-BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)
@@ -767,19 +766,6 @@ def _supersampling(
 def dense_shape(projector: Projector, step: int = 4) -> tuple[int, int]:
     """Lattice shape with one node every ``step`` projector pixels."""
     return (projector.height - 1) // step + 1, (projector.width - 1) // step + 1
-
-
-def is_still(
-    gyro: FloatArray, accel: FloatArray, max_rate: float = 0.03, max_accel_std: float = 0.3
-) -> bool:
-    """Whether IMU samples (N, 3) gyro rad/s and (N, 3) accel m/s^2 show a still device."""
-    g = np.asarray(gyro, dtype=np.float64).reshape(-1, 3)
-    a = np.asarray(accel, dtype=np.float64).reshape(-1, 3)
-    if len(g) < 2:
-        return False
-    rate = float(np.linalg.norm(np.median(g, axis=0)))
-    jitter = float(np.max(np.std(a, axis=0)))
-    return rate <= max_rate and jitter <= max_accel_std
 
 
 class SurfaceFilter:

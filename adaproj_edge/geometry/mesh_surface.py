@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.fileio import read_input
-from adaproj_edge.geometry.projector import FloatArray
 
 MAX_TRIANGLES = 2_000_000
 

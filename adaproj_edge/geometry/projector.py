@@ -5,11 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
-
-FloatArray = NDArray[np.float64]
 
 DEFAULT_WIDTH = 1280
 DEFAULT_HEIGHT = 800

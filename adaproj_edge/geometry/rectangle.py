@@ -19,13 +19,10 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from numpy.typing import NDArray
 
+from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
-from adaproj_edge.geometry.projector import FloatArray
 from adaproj_edge.geometry.triangles import unique_edges
-
-IntArray = NDArray[np.intp]
 
 RASTER = 256
 _SHIFT = 4

@@ -17,9 +17,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import SurfaceError
 from adaproj_edge.fileio import atomic_savez, load_npz
-from adaproj_edge.geometry.projector import FloatArray, Projector
+from adaproj_edge.geometry.projector import Projector
 
 MIN_VALID_FRACTION = 0.05
 

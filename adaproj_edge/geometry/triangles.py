@@ -9,11 +9,8 @@ e = bottom-right. In pixel coordinates (y down) both are positively oriented.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
-from adaproj_edge.geometry.projector import FloatArray
-
-IntArray = NDArray[np.intp]
+from adaproj_edge.arrays import FloatArray, IntArray
 
 
 def grid_triangles(rows: int, cols: int) -> IntArray:

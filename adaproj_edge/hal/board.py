@@ -34,8 +34,7 @@ from adaproj_edge.geometry.calibration import Calibration, field_errors
 from adaproj_edge.hal.button import check_key_code
 from adaproj_edge.hal.depth import StereoSettings
 from adaproj_edge.hal.lsm6dsox import ADDRESSES, Lsm6dsoxConfig
-
-BOARDS_DIR = Path(__file__).resolve().parents[2] / "hw" / "boards"
+from adaproj_edge.resources import boards_dir
 
 
 @dataclass(frozen=True)
@@ -67,7 +66,7 @@ class Board:
         """Read a board file by path, or by name from ``hw/boards``."""
         p = Path(path)
         if not p.suffix and not p.exists():
-            p = BOARDS_DIR / f"{p}.toml"
+            p = boards_dir() / f"{p}.toml"
         try:
             data = tomllib.loads(p.read_text())
         except FileNotFoundError:

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from adaproj_edge.errors import DeviceError, DeviceNotFoundError, InputError
 from adaproj_edge.geometry.calibration import DepthCameraModel
 from adaproj_edge.hal.clock import Clock, VirtualClock
-from adaproj_edge.hal.replay import ReplayStream
+from adaproj_edge.hal.recorded import ReplayStream
 
 _CHECK = "the OAK-D USB cable (USB3 port), its power, and the udev rule for vendor 03e7"
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from adaproj_edge.hal.clock import VirtualClock
-from adaproj_edge.hal.replay import ReplayStream
+from adaproj_edge.hal.recorded import ReplayStream
 
 Vec3 = tuple[float, float, float]
 

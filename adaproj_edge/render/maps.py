@@ -29,13 +29,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.creases import unfold_creases
-from adaproj_edge.geometry.projector import FloatArray, Projector
+from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import grid_triangles
-from adaproj_edge.warp.mesh import Warp
-
-IntArray = NDArray[np.intp]
+from adaproj_edge.warp.warpmap import Warp
 
 
 def _cells(positions: FloatArray, n_pixels: int) -> tuple[IntArray, FloatArray]:

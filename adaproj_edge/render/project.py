@@ -12,7 +12,7 @@ from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.frame import RemapMaps, render_frame
 from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.warp.engine import WarpSettings, compute_warp
-from adaproj_edge.warp.mesh import Warp
+from adaproj_edge.warp.warpmap import Warp
 
 
 @dataclass(frozen=True)

@@ -6,9 +6,8 @@ from collections.abc import Sequence
 
 import cv2
 import numpy as np
-from numpy.typing import NDArray
 
-Image = NDArray[np.uint8]
+from adaproj_edge.arrays import Image
 
 
 def _bgr(img: Image) -> Image:

@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 
 from adaproj_edge.hal.clock import VirtualClock
-from adaproj_edge.hal.replay import ReplayStream
+from adaproj_edge.hal.recorded import ReplayStream
 from adaproj_edge.hal.serial import SerialPort
 from adaproj_edge.session.records import SerialTraffic
 

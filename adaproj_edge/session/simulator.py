@@ -19,11 +19,13 @@ from typing import Any
 
 import numpy as np
 
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.analytic import SURFACES, AnalyticSurface, get_surface, ray_cast
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.mesh_surface import MeshSurface, load_mesh, ply_bytes, rasterize_depth
-from adaproj_edge.geometry.projector import FloatArray, Projector
+from adaproj_edge.geometry.projector import Projector
+from adaproj_edge.geometry.rotations import quaternion, rotation_of
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.hal.button import ButtonEvent
 from adaproj_edge.hal.depth import DepthFrame
@@ -31,7 +33,7 @@ from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.hal.lsm6dsox import Lsm6dsoxConfig
 from adaproj_edge.session import schemas
 from adaproj_edge.session.codec import Record
-from adaproj_edge.session.motion import HandMotion, quaternion, rotation_of
+from adaproj_edge.session.hand import HandMotion
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.stereo import StereoNoise, stereo_depth
 from adaproj_edge.session.writer import SessionWriter

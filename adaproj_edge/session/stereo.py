@@ -17,8 +17,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.calibration import DepthCameraModel
-from adaproj_edge.geometry.projector import FloatArray
 
 
 @dataclass(frozen=True)

@@ -19,10 +19,10 @@ from adaproj_edge.geometry.depth import (
     SurfaceEstimate,
     SurfaceFilter,
     estimate_surface,
-    is_still,
 )
 from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.imu import ImuSample
+from adaproj_edge.motion.tracker import is_still
 from adaproj_edge.session.codec import Record
 
 STILL_WINDOW_NS = 200_000_000

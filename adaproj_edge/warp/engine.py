@@ -23,12 +23,11 @@ from typing import Any, Literal, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD, ContentMap
 from adaproj_edge.errors import InputError, WarpError
-from adaproj_edge.geometry.projector import FloatArray
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.warp.mesh import Grid, Warp
-from adaproj_edge.warp.meshgeom import MeshGeometry, WarpCache
+from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
 from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
 from adaproj_edge.warp.solve import (
     ContentAwareSolver,
@@ -37,6 +36,7 @@ from adaproj_edge.warp.solve import (
     solve_conformal,
     solve_content_free,
 )
+from adaproj_edge.warp.warpmap import Grid, Warp
 
 
 class StepSolver(Protocol):

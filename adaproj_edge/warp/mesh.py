@@ -1,117 +1,222 @@
-"""The Warp (DESIGN.md): a backward mesh map from projector pixels to content pixels."""
+"""The surface as the warp sees it: grid vertices, their 3D points, usable triangles."""
 
 from __future__ import annotations
 
-import json
-import os
-import re
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
+import scipy.sparse
+import scipy.sparse.csgraph
 from numpy.typing import NDArray
 
-from adaproj_edge.errors import InputError
-from adaproj_edge.fileio import atomic_savez, load_npz
-from adaproj_edge.geometry.projector import FloatArray, Projector
+from adaproj_edge.arrays import FloatArray, IntArray
+from adaproj_edge.errors import WarpError
+from adaproj_edge.geometry.creases import unfold_creases
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.geometry.triangles import (
+    conformal_coords,
+    grid_triangles,
+    triangle_normals,
+    unique_edges,
+)
+from adaproj_edge.warp.warpmap import Grid
 
-MAX_GRID = 400
+T = TypeVar("T")
 
-
-@dataclass(frozen=True)
-class Grid:
-    """A regular mesh of ``cols`` x ``rows`` cells over the projector frame."""
-
-    cols: int = 20
-    rows: int = 20
-
-    def __post_init__(self) -> None:
-        if not (1 <= self.cols <= MAX_GRID and 1 <= self.rows <= MAX_GRID):
-            raise InputError(
-                f"grid {self.cols}x{self.rows} is outside 1x1 .. {MAX_GRID}x{MAX_GRID}"
-            )
-
-    @classmethod
-    def parse(cls, text: str) -> Grid:
-        """``"20x20"`` (columns x rows of cells) -> Grid."""
-        m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
-        if not m:
-            raise InputError(f"grid must look like 20x20 (columns x rows), got {text!r}")
-        return cls(int(m.group(1)), int(m.group(2)))
-
-    def __str__(self) -> str:
-        return f"{self.cols}x{self.rows}"
-
-    def vertices(self, projector: Projector) -> FloatArray:
-        """Vertex positions (rows + 1, cols + 1, 2) on integer pixel centres."""
-        if self.cols >= projector.width or self.rows >= projector.height:
-            raise InputError(
-                f"grid {self} is finer than the {projector.width}x{projector.height} frame"
-            )
-        xs = np.rint(np.linspace(0, projector.width - 1, self.cols + 1))
-        ys = np.rint(np.linspace(0, projector.height - 1, self.rows + 1))
-        gx, gy = np.meshgrid(xs, ys)
-        return np.stack([gx, gy], axis=-1)
+MIN_TRIANGLES = 8
 
 
 @dataclass
-class Warp:
-    """Content coordinates ``image_xy`` (R, C, 2) of the grid vertices ``grid_uv`` (R, C, 2).
+class Topology:
+    """Which grid triangles the warp solves for, and everything that follows from that
+    alone: compact vertex numbering, edges, boundary, and (memoised) solver structures.
 
-    NaN in ``image_xy`` marks vertices with no surface (they show black). ``map_xy``
-    (H, W, 2) float32, when present, is the per-pixel map the renderer uses.
+    It depends on the surface only through which triangles are usable, so a device that
+    re-estimates the surface of the same scene keeps meeting the same topology.
     """
 
-    grid_uv: FloatArray
-    image_xy: FloatArray
-    content_size: tuple[int, int]
-    projector: Projector
-    meta: dict[str, Any] = field(default_factory=dict)
-    map_xy: NDArray[np.float32] | None = None
-    depth: FloatArray | None = None
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the warp file atomically."""
-        meta = dict(self.meta)
-        meta.update(
-            content_width=self.content_size[0],
-            content_height=self.content_size[1],
-            width=self.projector.width,
-            height=self.projector.height,
-        )
-        arrays: dict[str, Any] = {
-            "grid_uv": self.grid_uv.astype(np.float32),
-            "image_xy": self.image_xy.astype(np.float32),
-            "K": self.projector.K,
-            "meta": np.array(json.dumps(meta)),
-        }
-        if self.depth is not None:
-            arrays["depth"] = self.depth.astype(np.float32)
-        if self.map_xy is not None:
-            arrays["map_xy"] = self.map_xy.astype(np.float32)
-        atomic_savez(Path(path), **arrays)
+    cand: IntArray  # (T, 3) grid vertex indices of the kept triangles
+    used: NDArray[np.bool_]
+    index: IntArray
+    verts: IntArray
+    tris: IntArray
+    edges: IntArray
+    inverse: IntArray  # edge index of each triangle side, sides ordered (k -> k+1) by k
+    boundary: IntArray
+    memo: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> Warp:
-        """Read a warp file written by :meth:`save`."""
-        arrays = load_npz(path, "warp file", ("grid_uv", "image_xy", "K", "meta"))
-        try:
-            meta = json.loads(str(arrays["meta"]))
-            grid_uv = arrays["grid_uv"].astype(np.float64)
-            image_xy = arrays["image_xy"].astype(np.float64)
-            K = arrays["K"].astype(np.float64)
-            depth = arrays["depth"].astype(np.float64) if "depth" in arrays else None
-            map_xy = arrays["map_xy"].astype(np.float32) if "map_xy" in arrays else None
-        except (ValueError, TypeError) as e:
-            raise InputError(f"cannot read warp file {path}: {e}") from None
-        if not isinstance(meta, dict):
-            raise InputError(f"warp file {path}: meta must be a JSON object")
-        if grid_uv.shape != image_xy.shape or grid_uv.ndim != 3 or grid_uv.shape[2] != 2:
-            raise InputError(f"warp file {path}: grid_uv and image_xy must both be (R, C, 2)")
-        try:
-            projector = Projector(K, int(meta["width"]), int(meta["height"]))
-            size = (int(meta["content_width"]), int(meta["content_height"]))
-        except (KeyError, TypeError, ValueError):
-            raise InputError(f"warp file {path}: meta lacks the frame or content size") from None
-        return cls(grid_uv, image_xy, size, projector, meta, map_xy, depth)
+    def from_triangles(cls, cand: IntArray, n_vertices: int) -> Topology:
+        used = np.zeros(n_vertices, dtype=bool)
+        used[cand.ravel()] = True
+        index = np.full(n_vertices, -1, dtype=np.intp)
+        verts = np.flatnonzero(used)
+        index[verts] = np.arange(verts.size)
+        tris = index[cand]
+        e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+        edges, inverse, counts = unique_edges(e, max(int(verts.size), 1))
+        return cls(cand, used, index, verts, tris, edges, inverse, edges[counts == 1])
+
+    def remember(self, name: str, make: Callable[[], T]) -> T:
+        """``make()`` once per topology (solver structures)."""
+        if name not in self.memo:
+            self.memo[name] = make()
+        out: T = self.memo[name]
+        return out
+
+
+class WarpCache:
+    """Topologies seen recently, so repeated warps of a scene skip the set-up work.
+
+    Owned by the caller (the device keeps one); :func:`MeshGeometry.build` without one
+    starts from scratch.
+    """
+
+    def __init__(self, size: int = 8) -> None:
+        self.size = size
+        self._items: OrderedDict[bytes, Topology] = OrderedDict()
+        self.hits = 0
+        self.misses = 0
+
+    def topology(self, key: bytes, make: Callable[[], Topology]) -> Topology:
+        if key in self._items:
+            self._items.move_to_end(key)
+            self.hits += 1
+            return self._items[key]
+        self.misses += 1
+        topo = make()
+        self._items[key] = topo
+        while len(self._items) > self.size:
+            self._items.popitem(last=False)
+        return topo
+
+
+@dataclass(frozen=True)
+class MeshGeometry:
+    """The part of the grid the warp solves for.
+
+    Attributes
+    ----------
+    grid : Grid
+    grid_uv : (R, C, 2) vertex pixel positions.
+    points : (R*C, 3) vertex points in frame P (NaN where no surface).
+    used : (R*C,) bool, vertices of the kept triangles.
+    index : (R*C,) int, compact index of used vertices (-1 elsewhere).
+    verts : (n,) grid index of each compact vertex.
+    tris : (T, 3) compact vertex indices of the kept triangles.
+    coords : (T, 3, 2) conformal (alpha, beta) of each triangle role.
+    edges : (E, 2) undirected compact edges of the kept triangles.
+    lengths : (E,) edge lengths on the surface (metres).
+    boundary : (B, 2) edges on the region's boundary (holes included).
+    """
+
+    grid: Grid
+    grid_uv: FloatArray
+    points: FloatArray
+    topology: Topology
+    coords: FloatArray
+    lengths: FloatArray
+
+    @property
+    def used(self) -> NDArray[np.bool_]:
+        return self.topology.used
+
+    @property
+    def index(self) -> IntArray:
+        return self.topology.index
+
+    @property
+    def verts(self) -> IntArray:
+        return self.topology.verts
+
+    @property
+    def tris(self) -> IntArray:
+        return self.topology.tris
+
+    @property
+    def edges(self) -> IntArray:
+        return self.topology.edges
+
+    @property
+    def boundary(self) -> IntArray:
+        return self.topology.boundary
+
+    @property
+    def n(self) -> int:
+        return int(self.verts.size)
+
+    @property
+    def p(self) -> FloatArray:
+        """(n, 3) points of the compact vertices."""
+        return self.points[self.verts]
+
+    @property
+    def uv(self) -> FloatArray:
+        """(n, 2) pixel positions of the compact vertices."""
+        return self.grid_uv.reshape(-1, 2)[self.verts]
+
+    @classmethod
+    def build(
+        cls,
+        surface: Surface,
+        grid: Grid,
+        cache: WarpCache | None = None,
+        grid_uv: FloatArray | None = None,
+    ) -> MeshGeometry:
+        """Sample the surface at the grid and keep its largest connected piece.
+
+        ``grid_uv`` (rows + 1, cols + 1, 2) places the vertices elsewhere than
+        :meth:`Grid.vertices` (a coarse grid on a subset of a fine grid's vertices)."""
+        if grid_uv is None:
+            grid_uv = grid.vertices(surface.projector)
+        elif grid_uv.shape != (grid.rows + 1, grid.cols + 1, 2):
+            raise ValueError(f"grid_uv {grid_uv.shape} does not fit grid {grid}")
+        pts = surface.points_at(grid_uv).reshape(-1, 3)
+        all_tris = grid_triangles(grid.rows, grid.cols)
+        ok = np.all(np.isfinite(pts[all_tris]).all(axis=2), axis=1)
+        normals = triangle_normals(pts[all_tris[ok]])
+        # A triangle must face the projector (it was seen) and not be degenerate.
+        facing = np.all(np.isfinite(normals), axis=1)
+        facing &= np.sum(normals * pts[all_tris[ok]].mean(axis=1), axis=1) < 0
+        keep = np.zeros(all_tris.shape[0], dtype=bool)
+        keep[np.flatnonzero(ok)[facing]] = True
+        if keep.sum() < MIN_TRIANGLES:
+            raise WarpError(
+                f"only {int(keep.sum())} grid triangles meet the surface; point the projector "
+                "at the surface or use a finer grid"
+            )
+
+        def make() -> Topology:
+            return Topology.from_triangles(
+                _largest_component(all_tris[keep], pts.shape[0]), pts.shape[0]
+            )
+
+        key = f"{grid.cols}x{grid.rows}:".encode() + np.packbits(keep).tobytes()
+        topo = make() if cache is None else cache.topology(key, make)
+        cand = topo.cand
+        tri_pts = unfold_creases(surface, grid_uv.reshape(-1, 2)[cand], cand, pts).points
+        coords = conformal_coords(tri_pts)
+        # edge lengths as the (unfolded) triangles have them; an edge shared by two
+        # triangles gets the mean of their two values
+        tri_len = np.linalg.norm(tri_pts - np.roll(tri_pts, -1, axis=1), axis=2)  # edge k: k->k+1
+        n_edges = topo.edges.shape[0]
+        sums = np.bincount(topo.inverse, weights=tri_len.T.ravel(), minlength=n_edges)
+        counts = np.bincount(topo.inverse, minlength=n_edges)
+        return cls(grid, grid_uv, pts, topo, coords, sums / counts)
+
+
+def _largest_component(tris: IntArray, n_vertices: int) -> IntArray:
+    """The triangles of the largest vertex-connected component (by triangle count)."""
+    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]]])
+    graph = scipy.sparse.coo_matrix(
+        (np.ones(e.shape[0]), (e[:, 0], e[:, 1])), shape=(n_vertices, n_vertices)
+    )
+    ncomp, labels = scipy.sparse.csgraph.connected_components(graph, directed=False)
+    if ncomp == 1:
+        return tris
+    per_tri = labels[tris[:, 0]]
+    keep: IntArray = tris[per_tri == int(np.argmax(np.bincount(per_tri)))]
+    return keep

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.rectangle import inscribed_rectangle
 from adaproj_edge.geometry.triangles import cross, triangle_normals
-from adaproj_edge.warp.meshgeom import MeshGeometry
+from adaproj_edge.warp.mesh import MeshGeometry
 
 DEFAULT_UP = (0.0, -1.0, 0.0)  # "up" in frame P when the projector is held level
 

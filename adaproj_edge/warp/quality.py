@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.surface import Surface
 
 

@@ -15,9 +15,9 @@ import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
-from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.warp.engine import Backend
-from adaproj_edge.warp.meshgeom import MeshGeometry
+from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.solve import (
     ContentAwareWeights,
     _pin_positions,

@@ -11,15 +11,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
+from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
-from adaproj_edge.geometry.projector import FloatArray
 from adaproj_edge.warp import terms
-from adaproj_edge.warp.meshgeom import MeshGeometry
+from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.system import BandedLeastSquares, Rows
-
-IntArray = NDArray[np.intp]
 
 
 @dataclass(frozen=True)

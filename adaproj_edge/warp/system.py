@@ -21,10 +21,8 @@ import scipy.sparse
 import scipy.sparse.linalg
 from numpy.typing import NDArray
 
+from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
-from adaproj_edge.geometry.projector import FloatArray
-
-IntArray = NDArray[np.intp]
 
 SPARSE_ABOVE = 3e7  # nf * band^2 (banded Cholesky flops) above which sparse LU is used
 

@@ -9,12 +9,9 @@ each row its weight.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
-from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.warp.system import Rows
-
-IntArray = NDArray[np.intp]
 
 
 def conformal_rows(tris: IntArray, coords: FloatArray, stride: int) -> Rows:

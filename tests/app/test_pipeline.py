@@ -22,7 +22,7 @@ from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.render.frame import RemapMaps
 from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.warp.engine import WarpSettings, compute_warp
-from adaproj_edge.warp.mesh import Grid, Warp
+from adaproj_edge.warp.warpmap import Grid, Warp
 from tests.distortion import Distortion, in_mask, measure, visible_fraction
 from tests.warp.conftest import CONTENT, subject_masks, surface
 

@@ -10,7 +10,6 @@ import cv2
 import numpy as np
 import pytest
 
-from adaproj_edge.app.motion import MotionTracker
 from adaproj_edge.app.posecache import CachedWarp, PoseCache, common_nodes, pose_key
 from adaproj_edge.app.replay import builtin_item
 from adaproj_edge.app.runtime import AppSettings, Item, Runtime, State, mask_content_map
@@ -22,7 +21,8 @@ from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.display import MemoryDisplay
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.link.device import Content, Settings
-from adaproj_edge.session.motion import HandMotion
+from adaproj_edge.motion.tracker import MotionTracker
+from adaproj_edge.session.hand import HandMotion
 from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate
 
 CAL = Calibration.default()

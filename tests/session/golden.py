@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from adaproj_edge.session.replay import Replay
+from adaproj_edge.session.player import Replay
 from adaproj_edge.session.track import track_surface
 
 

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from adaproj_edge.session.player import Replay
 from adaproj_edge.session.reader import read_session
-from adaproj_edge.session.replay import Replay
 from adaproj_edge.session.track import track_surface
 from tests.session.golden import replay_outputs
 

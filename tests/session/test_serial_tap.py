@@ -7,9 +7,9 @@ from pathlib import Path
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.clock import MonotonicClock
 from adaproj_edge.hal.serial import FdPort, PtyPair
+from adaproj_edge.session.player import Replay
 from adaproj_edge.session.reader import read_session
 from adaproj_edge.session.recorder import Recorder
-from adaproj_edge.session.replay import Replay
 from adaproj_edge.session.serial_tap import RecordingPort
 from adaproj_edge.session.writer import SessionWriter
 

@@ -18,9 +18,9 @@ from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.session import schemas
 from adaproj_edge.session.codec import Record
+from adaproj_edge.session.player import Replay
 from adaproj_edge.session.reader import read_session
 from adaproj_edge.session.records import SerialTraffic, TruthPose
-from adaproj_edge.session.replay import Replay
 from adaproj_edge.session.writer import SessionWriter
 
 

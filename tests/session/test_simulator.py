@@ -10,9 +10,10 @@ import pytest
 from adaproj_edge.cli import main
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.calibration import Calibration
+from adaproj_edge.geometry.rotations import quaternion, rotation_of
 from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.imu import ImuSample
-from adaproj_edge.session.motion import GRAVITY_W, HandMotion, quaternion, rotation_of
+from adaproj_edge.session.hand import GRAVITY_W, HandMotion
 from adaproj_edge.session.reader import read_session
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate

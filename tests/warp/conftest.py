@@ -11,7 +11,7 @@ from adaproj_edge.geometry.analytic import get_surface, simulate_surface
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.warp.engine import WarpSettings, compute_warp
-from adaproj_edge.warp.mesh import Warp
+from adaproj_edge.warp.warpmap import Warp
 from tests.distortion import Distortion, measure
 
 CONTENT = (640, 400)

@@ -14,7 +14,7 @@ from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.warp.engine import WarpSettings, compute_warp
-from adaproj_edge.warp.mesh import Grid, Warp
+from adaproj_edge.warp.warpmap import Grid, Warp
 
 
 def _valid_files() -> dict[str, bytes]:

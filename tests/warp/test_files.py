@@ -13,7 +13,7 @@ from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.warp.engine import WarpSettings, compute_warp
-from adaproj_edge.warp.mesh import Grid, Warp
+from adaproj_edge.warp.warpmap import Grid, Warp
 
 
 def test_surface_round_trip_keeps_points_and_lattice(tmp_path: Path) -> None:

@@ -19,10 +19,11 @@ import pytest
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry import depth
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.depth import BoolArray, DepthSettings, SurfaceEstimate
-from adaproj_edge.geometry.projector import FloatArray, Projector
+from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 
 # --- the reference: depth.py before the speed-up -----------------------------------
@@ -396,7 +397,10 @@ def ref_lattice_depths(
 # --- the fast code against it --------------------------------------------------------
 
 SESSIONS = ("cylinder", "corner", "sphere")
-RTOL = 1e-9
+# the fits are small least-squares solves done in another order than the reference's
+# (and by other BLAS builds on other CPUs): they agree to about cond(A) x eps, seen up
+# to 3.4e-9 relative; 1e-6 leaves a wide margin and still catches any wrong term
+RTOL = 1e-6
 
 
 @cache
@@ -543,7 +547,7 @@ def test_smooth_lattice_at_kept_nodes_matches_the_reference(step: int, noise: bo
             new = depth.smooth_lattice(s, sigma, scales, 4.0, step=step)
             ref = ref_smooth_lattice(s, sigma, scales, 4.0)[::step, ::step]
             try:
-                assert_same(new, ref, rtol=RTOL if noise else 1e-6)
+                assert_same(new, ref, rtol=RTOL)
             except AssertionError as e:
                 raise AssertionError(f"{name} sigma={sigma} step={step}") from e
 

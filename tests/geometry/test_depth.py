@@ -12,10 +12,8 @@ from adaproj_edge.geometry.depth import (
     dense_shape,
     estimate_surface,
     fill_holes,
-    is_still,
     reject_spikes,
 )
-from adaproj_edge.hal.lsm6dsox import STANDARD_GRAVITY
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.simulator import Scene, true_surface
 
@@ -147,16 +145,6 @@ def test_filter_averages_while_still_and_restarts_on_motion() -> None:
     assert np.median(errors(filtered.surface.points, scene, (21, 21))) < 0.6 * np.median(singles)
     moved = f.update(est, still=False)
     assert moved.frames == 1
-
-
-def test_is_still() -> None:
-    rng = np.random.default_rng(2)
-    g = rng.normal(scale=0.001, size=(40, 3))
-    a = np.array([0.0, -STANDARD_GRAVITY, 0.0]) + rng.normal(scale=0.01, size=(40, 3))
-    assert is_still(g, a)
-    assert not is_still(g + np.array([0.2, 0.0, 0.0]), a)
-    assert not is_still(g, a + rng.normal(scale=1.0, size=a.shape))
-    assert not is_still(g[:1], a[:1])
 
 
 def test_surface_names_exist() -> None:

@@ -1,7 +1,7 @@
 """Motion from the IMU: moving / settled with hysteresis, and the device's orientation.
 
 The device counts as *moving* as soon as a short window of IMU samples is not still
-(:func:`~adaproj_edge.geometry.depth.is_still`: gyro rate and accelerometer jitter),
+(:func:`is_still`: gyro rate and accelerometer jitter),
 and as *settled* again only after ``settle_s`` of stillness, so a hand that is nearly
 still does not toggle between the two. The orientation is the integrated gyro (bias
 estimated while still), rotated into the projector frame P; it only serves as part of
@@ -15,9 +15,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from adaproj_edge.geometry.depth import is_still
-from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.geometry.rotations import rotation_matrix, rotation_vector
 from adaproj_edge.hal.imu import ImuSample
+
+
+def is_still(
+    gyro: FloatArray, accel: FloatArray, max_rate: float = 0.03, max_accel_std: float = 0.3
+) -> bool:
+    """Whether IMU samples (N, 3) gyro rad/s and (N, 3) accel m/s^2 show a still device."""
+    g = np.asarray(gyro, dtype=np.float64).reshape(-1, 3)
+    a = np.asarray(accel, dtype=np.float64).reshape(-1, 3)
+    if len(g) < 2:
+        return False
+    rate = float(np.linalg.norm(np.median(g, axis=0)))
+    jitter = float(np.max(np.std(a, axis=0)))
+    return rate <= max_rate and jitter <= max_accel_std
 
 
 @dataclass(frozen=True)
@@ -26,26 +39,6 @@ class MotionSettings:
 
     window_s: float = 0.2
     settle_s: float = 0.3
-
-
-def _rotation(r: FloatArray) -> FloatArray:
-    """Rotation matrix of the rotation vector ``r`` (3,)."""
-    theta = float(np.linalg.norm(r))
-    if theta < 1e-12:
-        return np.eye(3)
-    k = r / theta
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(theta) * kx + (1 - np.cos(theta)) * (kx @ kx)  # type: ignore[no-any-return]
-
-
-def rotation_vector(R: FloatArray) -> FloatArray:
-    """Rotation vector (3,) of a rotation matrix (3, 3)."""
-    c = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
-    theta = float(np.arccos(c))
-    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    if theta < 1e-9:
-        return w / 2.0
-    return w * (theta / (2.0 * np.sin(theta)))  # type: ignore[no-any-return]
 
 
 class MotionTracker:
@@ -76,7 +69,7 @@ class MotionTracker:
         if self._last_ns is not None and t > self._last_ns:
             dt = min((t - self._last_ns) * 1e-9, 0.1)
             w_p = self.R_P_I @ (gyro - self._bias)
-            self.orientation = self.orientation @ _rotation(w_p * dt)
+            self.orientation = self.orientation @ rotation_matrix(w_p * dt)
         self._last_ns = t
         self._window.append(sample)
         horizon = t - int(self.settings.window_s * 1e9)

@@ -13,43 +13,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from adaproj_edge.geometry.projector import FloatArray
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.geometry.rotations import rodrigues
 
 GRAVITY_W = np.array([0.0, 9.80665, 0.0])  # y is down in W (the device starts level)
-
-
-def rodrigues(r: FloatArray) -> FloatArray:
-    """Rotation matrices (N, 3, 3) of rotation vectors ``r`` (N, 3)."""
-    theta = np.linalg.norm(r, axis=-1)[:, None, None]
-    k = np.zeros((len(r), 3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -r[:, 2], r[:, 1], -r[:, 0]
-    k = k - k.transpose(0, 2, 1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        a = np.where(theta > 1e-12, np.sin(theta) / theta, 1.0)
-        b = np.where(theta > 1e-12, (1 - np.cos(theta)) / theta**2, 0.5)
-    return np.eye(3) + a * k + b * (k @ k)
-
-
-def quaternion(R: FloatArray) -> FloatArray:
-    """Unit quaternion (x, y, z, w) of a rotation matrix (3, 3), w >= 0."""
-    w = np.sqrt(max(0.0, 1 + R[0, 0] + R[1, 1] + R[2, 2])) / 2
-    x = np.copysign(np.sqrt(max(0.0, 1 + R[0, 0] - R[1, 1] - R[2, 2])) / 2, R[2, 1] - R[1, 2])
-    y = np.copysign(np.sqrt(max(0.0, 1 - R[0, 0] + R[1, 1] - R[2, 2])) / 2, R[0, 2] - R[2, 0])
-    z = np.copysign(np.sqrt(max(0.0, 1 - R[0, 0] - R[1, 1] + R[2, 2])) / 2, R[1, 0] - R[0, 1])
-    q = np.array([x, y, z, w])
-    return q / np.linalg.norm(q)  # type: ignore[no-any-return]
-
-
-def rotation_of(q: tuple[float, float, float, float]) -> FloatArray:
-    """Rotation matrix (3, 3) of a unit quaternion (x, y, z, w)."""
-    x, y, z, w = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def _min_jerk(tau: FloatArray) -> FloatArray:

@@ -20,7 +20,7 @@ from adaproj_edge.session.simulator import (
 )
 from adaproj_edge.session.track import track_surface
 
-FIXTURES = Path(__file__).resolve().parent / "fixtures" / "sessions"
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "sessions"
 GRID = (21, 21)  # vertices of a 20x20 warp grid
 
 

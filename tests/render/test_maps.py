@@ -7,7 +7,7 @@ import numpy as np
 from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.render.maps import PixelWeights, map_from_warp
 from adaproj_edge.warp.engine import WarpSettings, compute_warp
-from adaproj_edge.warp.mesh import Grid
+from adaproj_edge.warp.warpmap import Grid
 
 
 def test_weights_of_a_pose_map_any_warp_of_it() -> None:

@@ -16,7 +16,7 @@ import pytest
 from adaproj_edge.geometry.analytic import SURFACES, get_surface
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.render.maps import map_from_warp
-from adaproj_edge.session.motion import HandMotion
+from adaproj_edge.session.hand import HandMotion
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate, true_surface
 from adaproj_edge.session.track import track_surface

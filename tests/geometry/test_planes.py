@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.analytic import Corner, get_surface, ray_cast
 from adaproj_edge.geometry.depth import lattice_uv
 from adaproj_edge.geometry.planes import curvature_ratio, find_planes, snap_planes
-from adaproj_edge.geometry.projector import FloatArray, Projector
+from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 
 NOISE_M = 0.0015  # about what 3 averaged stereo frames leave on the lattice at 1.5-2 m

@@ -11,7 +11,7 @@ import pytest
 
 from adaproj_edge.cli import main
 from adaproj_edge.content.builtin import poster
-from adaproj_edge.warp.mesh import Warp
+from adaproj_edge.warp.warpmap import Warp
 
 
 @pytest.fixture(scope="module")
