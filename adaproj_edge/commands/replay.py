@@ -9,7 +9,7 @@ from dataclasses import replace
 from typing import Any
 
 from adaproj_edge.app.replay import ReplayOptions, replay_session
-from adaproj_edge.app.runtime import AppSettings
+from adaproj_edge.app.settings import AppSettings
 from adaproj_edge.resources import default_session
 
 log = logging.getLogger(__name__)

@@ -123,6 +123,30 @@ class ContentMapper:
         if d != item.mask_digest:
             self._fit_mask(item, png, d)
 
+    def set_mask_values(self, name: str, mask: Map | None) -> None:
+        """Give item ``name`` a user mask already decoded at the content's size (h, w)
+        float32 in [0, 1] (:func:`~adaproj_edge.content.mask.load_mask`), or remove
+        it with None.
+
+        Raises
+        ------
+        InputError
+            No content was set for ``name``, or the mask is not at its size.
+        """
+        item = self._item(name)
+        if mask is None:
+            item.mask_digest, item.mask_png, item.mask = None, None, None
+            return
+        w, h = item.content_size
+        if mask.shape != (h, w):
+            raise InputError(f"mask of shape {mask.shape} does not match the content {w}x{h}")
+        d = digest(mask)
+        if d != item.mask_digest:
+            self.stats.mask_decodes += 1
+            size = coarse_size(item.content_size, self.grid)
+            item.mask = resize_map(mask, size, area=True)
+            item.mask_png, item.mask_digest = None, d
+
     def content_map(self, name: str) -> ContentMap:
         """The current content map of item ``name``."""
         item = self._item(name)

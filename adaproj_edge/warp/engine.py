@@ -1,4 +1,6 @@
-"""compute_warp: the whole method, from a Surface and a content map to a Warp.
+"""The steps of the method and their settings: standard (letterbox), the content-aware
+alternation (ours, and the paper's as written), and a Warp from solved positions.
+:mod:`adaproj_edge.warp.planner` puts them together (:func:`compute_warp`).
 
 Modes
 -----
@@ -15,19 +17,19 @@ Modes
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal, Protocol
 
 import numpy as np
-from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD, ContentMap
 from adaproj_edge.errors import InputError, WarpError
+from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
+from adaproj_edge.warp.mesh import MeshGeometry
+from adaproj_edge.warp.orientation import unfolded
 from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
 from adaproj_edge.warp.solve import (
     ContentAwareSolver,
@@ -98,9 +100,9 @@ class WarpSettings:
             raise InputError("max_iterations, tolerance and lambda must be positive")
 
 
-def standard_warp(surface: Surface, content_size: tuple[int, int], grid: Grid) -> Warp:
+def standard_warp(projector: Projector, content_size: tuple[int, int], grid: Grid) -> Warp:
     """The content letterboxed into the full frame: what a plain projector shows."""
-    proj = surface.projector
+    proj = projector
     grid_uv = grid.vertices(proj)
     w, h = content_size
     scale = min(proj.width / w, proj.height / h)
@@ -111,76 +113,6 @@ def standard_warp(surface: Surface, content_size: tuple[int, int], grid: Grid) -
     return Warp(grid_uv, image_xy, content_size, proj, meta, depth=None)
 
 
-def compute_warp(
-    surface: Surface,
-    content_size: tuple[int, int],
-    content_map: ContentMap | NDArray[np.floating] | None = None,
-    settings: WarpSettings | None = None,
-    backend: Backend = FAST,
-    cache: WarpCache | None = None,
-) -> Warp:
-    """The warp for ``surface`` and content of ``content_size`` (w, h) pixels.
-
-    Parameters
-    ----------
-    surface : Surface
-        Projector-space point map (any lattice resolution).
-    content_size : (w, h)
-    content_map : ContentMap or (h', w') float array in [0, 1], optional
-        The content map C (saliency max user mask) over the whole content, at any
-        resolution; None means uniform. Vertices are salient where C >= threshold.
-    settings : WarpSettings, optional
-    backend : the solves (the fast ones, or the reference for comparison)
-    cache : WarpCache, optional
-        Keeps the mesh topology and solver structures between calls (a device keeps
-        one; a scene seen again skips that set-up).
-
-    Returns
-    -------
-    Warp with ``meta`` holding the mode, grid, iterations and stage timings (s).
-    """
-    settings = settings or WarpSettings()
-    w, h = content_size
-    if w < 2 or h < 2:
-        raise InputError(f"content size {w}x{h} is too small")
-    if settings.mode == "standard":
-        return standard_warp(surface, content_size, settings.grid)
-    surface.check_usable()
-    timings: dict[str, Any] = {}
-    t0 = time.perf_counter()
-    mesh = MeshGeometry.build(surface, settings.grid, cache)
-    v = backend.conformal(mesh)
-    timings["conformal"] = time.perf_counter() - t0
-    iterations = 0
-    salient_fraction = 0.0
-    if settings.mode == "content":
-        v_conformal = v
-        v, _ = backend.content_free(mesh, v, settings.lam)
-        placement = place(mesh, v, content_size, settings.up)
-        timings["init"] = time.perf_counter() - t0
-        t2 = time.perf_counter()
-        if content_map is not None:
-            values = content_map.values if isinstance(content_map, ContentMap) else content_map
-            if np.ndim(values) != 2:
-                raise InputError(f"content map must be a 2D array, got shape {np.shape(values)}")
-            cmap = ContentMap(np.asarray(values, np.float32), content_size, settings.threshold)
-            if settings.alternation == "paper":
-                v, iterations, salient_fraction = refine_as_paper(
-                    mesh, v_conformal, v, placement, cmap, settings
-                )
-            else:
-                v, placement, iterations, salient_fraction = refine(
-                    mesh, v, placement, cmap, settings, backend, timings
-                )
-        timings["refine"] = time.perf_counter() - t2
-    else:
-        placement = place(mesh, v, content_size, settings.up)
-    timings["total"] = time.perf_counter() - t0
-    return make_warp(
-        mesh, v, placement, surface, content_size, settings, iterations, salient_fraction, timings
-    )
-
-
 def refine(
     mesh: MeshGeometry,
     v: FloatArray,
@@ -188,17 +120,16 @@ def refine(
     content_map: ContentMap,
     settings: WarpSettings,
     backend: Backend = FAST,
-    timings: dict[str, Any] | None = None,
+    on_step: Callable[[], None] | None = None,
 ) -> tuple[FloatArray, Placement, int, float]:
     """The content-aware alternation (Algorithm 1, our energy); returns the final
-    positions, their placement, the number of steps and the salient vertex fraction."""
+    positions, their placement, the number of steps and the salient vertex fraction.
+    ``on_step`` is called after each step taken (a caller's stopwatch)."""
     solver: StepSolver | None = None
     iterations = 0
     fraction = 0.0
-    steps: list[float] = []
     w = np.zeros(mesh.n)
     for _ in range(settings.max_iterations):
-        t0 = time.perf_counter()
         xy = placement.apply(v)
         # eq. 8, with hysteresis: a vertex that showed salient content stays salient,
         # so the salient set only grows and the alternation cannot oscillate
@@ -209,17 +140,16 @@ def refine(
         if solver is None:
             solver = backend.content_aware(mesh, settings.weights)
         v_new = solver.step(v, w)
-        if not _orientation_ok(mesh, v_new):
+        if not unfolded(v_new, mesh.tris):
             break  # keep the last fold-free iterate
         new_placement = place(mesh, v_new, content_map.content_size, settings.up, placement)
         motion = float(np.mean(np.linalg.norm(new_placement.apply(v_new) - xy, axis=1)))
         v, placement = v_new, new_placement
         iterations += 1
-        steps.append(time.perf_counter() - t0)
+        if on_step is not None:
+            on_step()
         if motion < settings.tolerance:
             break
-    if timings is not None:
-        timings["iterations"] = steps
     return v, placement, iterations, fraction
 
 
@@ -243,7 +173,7 @@ def refine_as_paper(
         if w.min() == w.max():
             break
         v_new = paper.step(v, w, c)
-        if not _orientation_ok(mesh, v_new):
+        if not unfolded(v_new, mesh.tris):
             break
         motion = float(np.mean(np.linalg.norm(placement.apply(v_new) - xy, axis=1)))
         v = v_new
@@ -251,15 +181,6 @@ def refine_as_paper(
         if motion < settings.tolerance:
             break
     return v, iterations, fraction
-
-
-def _orientation_ok(mesh: MeshGeometry, v: FloatArray) -> bool:
-    """No triangle folded over (all keep the orientation they have in the projector)."""
-    q = v[mesh.tris]
-    cross = (q[:, 1, 0] - q[:, 0, 0]) * (q[:, 2, 1] - q[:, 0, 1]) - (q[:, 1, 1] - q[:, 0, 1]) * (
-        q[:, 2, 0] - q[:, 0, 0]
-    )
-    return bool(np.all(cross > 0))
 
 
 def make_warp(
@@ -271,12 +192,11 @@ def make_warp(
     settings: WarpSettings,
     iterations: int,
     salient_fraction: float,
-    timings: dict[str, Any],
 ) -> Warp:
     """A Warp from solved positions ``v`` (n, 2) of ``mesh`` and their placement; raises
     :class:`WarpError` if the mesh folds over. For callers that run the solves
     themselves (the device runtime keeps solver state between updates)."""
-    if not _orientation_ok(mesh, v):
+    if not unfolded(v, mesh.tris):
         raise WarpError("the warp folds over; the surface is too irregular for this grid")
     rows, cols = settings.grid.rows + 1, settings.grid.cols + 1
     image_xy = np.full((rows * cols, 2), np.nan)
@@ -291,7 +211,6 @@ def make_warp(
         "threshold": settings.threshold,
         "salient_vertex_fraction": salient_fraction,
         "used_vertices": mesh.n,
-        "timings": timings,
         "surface": surface.meta,
     }
     return Warp(

@@ -7,13 +7,9 @@ import pytest
 
 from adaproj_edge.geometry.analytic import Plane, get_surface
 from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.geometry.depth import (
-    SurfaceFilter,
-    dense_shape,
-    estimate_surface,
-    fill_holes,
-    reject_spikes,
-)
+from adaproj_edge.geometry.depth.estimate import estimate_surface
+from adaproj_edge.geometry.depth.lattice import dense_shape, fill_holes, reject_spikes
+from adaproj_edge.geometry.depth.temporal import SurfaceFilter
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.simulator import Scene, true_surface
 
@@ -152,7 +148,7 @@ def test_surface_names_exist() -> None:
 
 
 def test_smooth_lattice_keeps_planes_and_creases_and_removes_noise() -> None:
-    from adaproj_edge.geometry.depth import smooth_lattice
+    from adaproj_edge.geometry.depth.fits import smooth_lattice
 
     rows, cols = 40, 60
     v, u = np.mgrid[0:rows, 0:cols].astype(float)

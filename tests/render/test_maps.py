@@ -6,7 +6,8 @@ import numpy as np
 
 from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.render.maps import PixelWeights, map_from_warp
-from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.warpmap import Grid
 
 

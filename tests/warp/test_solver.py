@@ -9,8 +9,9 @@ from hypothesis import strategies as st
 
 from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.warp import reference, solve
-from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import MeshGeometry
+from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.system import BandedLeastSquares
 from adaproj_edge.warp.warpmap import Grid
 
