@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from adaproj_edge.app.runtime import Runtime
-from adaproj_edge.render.display import display_float_map
+from adaproj_edge.render.display_maps import display_float_map
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.simulator import Scene, true_surface
 from adaproj_edge.warp.engine import WarpSettings

@@ -1,7 +1,7 @@
 """Where the runtime's warps and display maps come from: one warp planner
 (:class:`~adaproj_edge.warp.planner.WarpPlanner`, coarse-to-fine and warm-started), one
-display-map builder (:class:`~adaproj_edge.render.display.DisplayMapBuilder`) and the
-pose cache between them.
+display-map builder (:class:`~adaproj_edge.render.display_maps.DisplayMapBuilder`) and
+the pose cache between them.
 
 A pose's entry holds its content-free warp, the pixel weights of its mesh (every warp of
 that pose maps through them) and, once shown, the content-free warp's own maps. Lookups
@@ -22,7 +22,7 @@ from adaproj_edge.arrays import Float32Array, FloatArray
 from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.render.display import DisplayMapBuilder
+from adaproj_edge.render.display_maps import DisplayMapBuilder
 from adaproj_edge.render.frame import RemapMaps
 from adaproj_edge.render.maps import PixelWeights
 from adaproj_edge.warp.engine import WarpSettings
