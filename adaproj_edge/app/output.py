@@ -59,6 +59,11 @@ class Output:
         self._good: Image | None = None
         self._canvas: Image | None = None
 
+    @property
+    def clean_frame(self) -> Image | None:
+        """The last frame rendered, without the fault marks (None before any)."""
+        return self._good
+
     def set(self, warp: Warp, maps: RemapMaps) -> None:
         """The warp to show from now on, and its maps."""
         self.warp, self.maps = warp, maps

@@ -31,9 +31,15 @@ from adaproj_edge.app.content import builtin_item, mask_content_map
 from adaproj_edge.app.inputs import Input, SourceFault, feed
 from adaproj_edge.app.link_replay import LinkReplay
 from adaproj_edge.app.memory import pin_mmap_threshold, rss_mb
-from adaproj_edge.app.report import FrameSampler, summary, timed, write_outputs
+from adaproj_edge.app.report import (
+    FrameSampler,
+    clear_outputs,
+    summary,
+    timed,
+    write_outputs,
+)
 from adaproj_edge.app.runtime import Runtime
-from adaproj_edge.app.scoring import Scorer
+from adaproj_edge.app.scoring import MEASURES, Scorer, SideViews
 from adaproj_edge.app.settings import AppSettings
 from adaproj_edge.errors import InputError
 from adaproj_edge.hal.button import ButtonEvent
@@ -77,6 +83,7 @@ class ReplayOptions:
     settings: AppSettings = field(default_factory=AppSettings)
     all_frames: bool = False
     score: bool = True
+    side_views: bool = True  # a few moments seen from the side, in the contact sheet
 
 
 def session_faults(metadata: dict[str, dict[str, str]]) -> list[InjectedFault]:
@@ -117,9 +124,12 @@ def replay_session(
     for _ in iter_records(path, topics=set(), scan=scan):
         pass
     faults = session_faults(scan.metadata)
+    damage = scan.damage()
+    if damage is not None:
+        log.warning("%s: %s", path.name, damage)
     out_dir = Path(out) if out is not None else None
     if out_dir is not None:
-        (out_dir / "frames").mkdir(parents=True, exist_ok=True)
+        clear_outputs(out_dir)
         shutil.rmtree(out_dir / "store", ignore_errors=True)
     with tempfile.TemporaryDirectory(prefix="adaproj-replay-") as tmp:
         store = out_dir / "store" if out_dir is not None else Path(tmp) / "store"
@@ -145,6 +155,7 @@ def _replay(
     rt = Runtime(cal, display, replay.clock, [builtin_item()], settings, mask_content_map, frames)
     link = LinkReplay(store, rt)
     scorer = None
+    side = SideViews(rt) if options.side_views and out_dir is not None else None
     spec_raw = scan.attachments.get(schemas.TRUTH_SURFACE_ATTACHMENT)
     if options.score and spec_raw is not None:
         scorer = Scorer(scene_of_session(json.loads(spec_raw), scan.attachments), rt)
@@ -163,11 +174,10 @@ def _replay(
         if isinstance(rec, DepthFrame | ImuSample | ButtonEvent):
             feed(rt, _injected(rec, faults, (rec.receive_ns - t0) / 1e9))
             telemetry = rt.telemetry
-            if isinstance(rec, DepthFrame) and scorer is not None and pose is not None:
-                if telemetry.update_count > scored:
-                    scored = telemetry.update_count
-                    if telemetry.updates[-1]["kind"] == "content-aware":
-                        scorer.score(pose)
+            if isinstance(rec, DepthFrame) and telemetry.update_count > scored:
+                scored = telemetry.update_count
+                if telemetry.updates[-1]["kind"] == "content-aware":
+                    _score(rt, scorer, side, pose)
         elif isinstance(rec, TruthPose):
             pose = rec
         elif isinstance(rec, SerialTraffic):
@@ -178,17 +188,34 @@ def _replay(
         raise InputError(f"session {path} holds no records")
     rt.tick()
     rss.append(round(rss_mb(), 1))
+    pictures = [] if side is None else side.pictures(t0)
     result = summary(
         path.name,
         rt.telemetry,
         rt.clock.now_ns(),
         frames,
         t0,
+        session_file=scan.report(),
         injected_faults=[f.__dict__ for f in faults],
         distortion=[] if scorer is None else timed(scorer.scores, t0),
+        distortion_measures=MEASURES,
         rss_mb=rss,
         link=link.summary(t0),
     )
     if result["link"]["rx_bytes"]:
         log.info("link: %s", {k: v for k, v in result["link"].items() if k != "mismatched"})
+    frames.side_views = pictures
     return result, frames
+
+
+def _score(
+    rt: Runtime, scorer: Scorer | None, side: SideViews | None, pose: TruthPose | None
+) -> None:
+    """After a content-aware update: score it on the truth, offer it to the side views
+    (on the true surface when the session has it, else on the device's estimate)."""
+    if scorer is not None and pose is not None:
+        scorer.score(pose)
+        if side is not None and scorer.last_truth is not None:
+            side.offer(scorer.last_truth, truth=True)
+    elif side is not None and scorer is None and rt.surface is not None:
+        side.offer(rt.surface, truth=False)

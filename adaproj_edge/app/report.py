@@ -30,6 +30,7 @@ class FrameSampler:
         self.count = 0
         self.checksums: list[dict[str, Any]] = []
         self.t0 = 0
+        self.side_views: list[tuple[list[Image], list[str]]] = []
 
     def __call__(self, t_ns: int, frame: Image, info: dict[str, Any]) -> None:
         self.count += 1
@@ -106,6 +107,20 @@ def summary(
     }
 
 
+OUTPUTS = ("summary.json", "contact_sheet.png")
+
+
+def clear_outputs(out: Path) -> None:
+    """Make ``out`` ready for a replay's outputs: the files an earlier replay wrote there
+    (the summary, the contact sheet, ``frames/*.png``) are removed, nothing else."""
+    frames = out / "frames"
+    frames.mkdir(parents=True, exist_ok=True)
+    for old in frames.glob("*.png"):
+        old.unlink()
+    for name in OUTPUTS:
+        (out / name).unlink(missing_ok=True)
+
+
 def write_outputs(out: Path, summary: dict[str, Any], frames: FrameSampler) -> None:
     """Write ``summary.json``, the sampled frames (``frames/``) and
     ``contact_sheet.png`` into ``out``."""
@@ -114,9 +129,10 @@ def write_outputs(out: Path, summary: dict[str, Any], frames: FrameSampler) -> N
     for n, t_ns, png, _, _ in picked:
         name = f"sample_{n:05d}_{(t_ns - frames.t0) / 1e9:07.3f}s.png"
         (out / "frames" / name).write_bytes(png)
-    if picked:
-        rows = [
-            row([p[3] for p in picked[i : i + 4]], [p[4] for p in picked[i : i + 4]], 200)
-            for i in range(0, len(picked), 4)
-        ]
+    rows = [
+        row([p[3] for p in picked[i : i + 4]], [p[4] for p in picked[i : i + 4]], 200)
+        for i in range(0, len(picked), 4)
+    ]
+    rows += [row(images, captions, 300) for images, captions in frames.side_views]
+    if rows:
         cv2.imwrite(str(out / "contact_sheet.png"), stack(rows))

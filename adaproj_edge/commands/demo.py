@@ -9,13 +9,14 @@ from pathlib import Path
 from typing import Any
 
 from adaproj_edge.commands._inputs import content_map
-from adaproj_edge.commands.simulate import DEFAULT_VIEWER, simulate
+from adaproj_edge.commands.simulate import simulate
 from adaproj_edge.content.builtin import poster, poster_mask
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
 from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.fileio import atomic_write_bytes, write_png
 from adaproj_edge.geometry.analytic import SURFACES, simulate_surface
 from adaproj_edge.render.sheet import stack
+from adaproj_edge.render.viewer import DEFAULT_VIEWER
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.quality import measure
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import sys
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 from adaproj_edge.app.replay import ReplayOptions, replay_session
@@ -62,8 +64,12 @@ def run(args: argparse.Namespace) -> int:
     for d in s["distortion"]:
         print(
             f"  t={d['t_s']:.2f}s angle error shown {d['shown_angle_error']:.4f} "
-            f"(warp from the true surface {d['truth_angle_error']:.4f})"
+            f"(warp from the true surface {d['truth_angle_error']:.4f}, "
+            f"plain projector {d['plain_angle_error']:.4f})"
         )
+    damage = s["session_file"]["damage"]
+    if damage is not None:
+        print(f"adaproj replay: warning: {Path(args.session).name}: {damage}", file=sys.stderr)
     if args.out:
         print(f"wrote {args.out}/summary.json, {args.out}/contact_sheet.png, {args.out}/frames/")
     else:

@@ -22,11 +22,9 @@ from adaproj_edge.fileio import read_image, write_png
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.project import Projection, project
 from adaproj_edge.render.sheet import row
-from adaproj_edge.render.viewer import Viewer, view
+from adaproj_edge.render.viewer import DEFAULT_VIEWER, view, viewer_for
 from adaproj_edge.warp.engine import MODES, WarpSettings
 from adaproj_edge.warp.warpmap import Grid
-
-DEFAULT_VIEWER = (0.8, -0.15, 0.1)
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -50,16 +48,6 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     )
     p.add_argument("--out", type=Path, required=True, help="picture to write (PNG)")
     p.set_defaults(run=run)
-
-
-def viewer_for(surface: Surface, eye: tuple[float, float, float]) -> Viewer:
-    """A viewer at ``eye`` looking at the surface point at the frame's centre."""
-    p = surface.projector
-    centre = surface.points_at(np.array([[(p.width - 1) / 2, (p.height - 1) / 2]]))[0]
-    if not np.all(np.isfinite(centre)):
-        valid = surface.points[surface.valid]
-        centre = valid.mean(axis=0) if valid.size else np.array([0.0, 0.0, 1.5])
-    return Viewer(eye, (float(centre[0]), float(centre[1]), float(centre[2])))
 
 
 def simulate(
