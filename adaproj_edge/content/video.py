@@ -200,7 +200,7 @@ def check_limits(info: VideoInfo, what: str, limits: VideoLimits) -> None:
     if w < 2 or h < 2 or w > limits.max_side or h > limits.max_side or w * h > limits.max_pixels:
         raise VideoError(
             f"{what} is {w}x{h}; a clip may be at most {limits.max_side} px a side and "
-            f"{limits.max_pixels} pixels (1920x1080)"
+            f"{limits.max_pixels} pixels"
         )
     if not 0.0 < info.fps <= limits.max_fps:
         raise VideoError(f"{what} runs at {info.fps:g} fps; 0 < fps <= {limits.max_fps:g}")

@@ -1,8 +1,8 @@
 """What the SMP server needs from the running device, and a stand-in for bring-up.
 
 The device runtime (``app/``) implements :class:`DeviceRuntime`; ``adaproj link`` on
-its own uses :class:`StandaloneDevice`, which shows the active image letterboxed on
-the projector frame, without any warp.
+its own uses :class:`StandaloneDevice`, which shows the active image (a clip: its first
+frame) letterboxed on the projector frame, without any warp.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
+from adaproj_edge.content.video import VideoReader, is_video_name
 from adaproj_edge.errors import AdaprojError, ContentError, ImageError
 from adaproj_edge.fileio import read_image
 from adaproj_edge.warp.engine import MODES
@@ -118,7 +119,8 @@ class StandaloneDevice:
 
     def activate(self, content: Content) -> None:
         try:
-            image = read_image(content.image)
+            image = first_frame(content.image) if is_video_name(content.image.name) else None
+            image = read_image(content.image) if image is None else image
             if content.mask is not None:
                 mask = read_image(content.mask, gray=True)
                 if mask.shape[:2] != image.shape[:2]:
@@ -138,6 +140,15 @@ class StandaloneDevice:
         if not ok:
             raise ImageError("cannot encode the current frame as PNG")
         return bytes(enc.tobytes())
+
+
+def first_frame(path: Path) -> NDArray[np.uint8]:
+    """The first frame of a clip (the stand-in shows it still)."""
+    with VideoReader(path) as reader:
+        frame = reader.next()
+    if frame.image is None:
+        raise ContentError(f"{path.name}: {frame.error}")
+    return frame.image
 
 
 def letterbox(image: NDArray[np.uint8], size: tuple[int, int]) -> NDArray[np.uint8]:

@@ -84,9 +84,7 @@ def test_images_without_faces_are_unchanged(
 @settings(max_examples=60, deadline=None)
 @given(
     boxes=st.lists(
-        st.tuples(
-            st.floats(-200, 900), st.floats(-200, 700), st.floats(0, 500), st.floats(0, 500)
-        ),
+        st.tuples(st.floats(-200, 900), st.floats(-200, 700), st.floats(0, 500), st.floats(0, 500)),
         max_size=5,
     ),
     size=st.tuples(st.integers(2, 90), st.integers(2, 60)),
