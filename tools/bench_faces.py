@@ -14,7 +14,9 @@ long side of the image the cascade scans), prints:
 "80x50" is the content map's own resolution (a 16:10 content, 20x20 grid): faces there
 are a few pixels wide, below the cascade's 24-pixel window. "full" scans the 1280x800
 picture as it is. The ratio column is time relative to the shipped cascade at the
-default scan size, measured in the same run.
+default scan size, measured in the same run. Last, the per-frame cost of following a
+face between detections (``FaceTracker``) on a 1280x800 clip, next to a detection on
+the same frames.
 
 Usage::
 
@@ -42,6 +44,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # for tests.content.facescenes (the face set)
 
 from adaproj_edge.content.faces import DEFAULT_LONG_SIDE, FaceDetector  # noqa: E402
+from adaproj_edge.content.facetrack import FaceTracker  # noqa: E402
 from adaproj_edge.resources import face_cascade  # noqa: E402
 from tests.content.facescenes import (  # noqa: E402
     Scene,
@@ -118,7 +121,26 @@ def main() -> int:
                 f"{int(r['hits']):4d}/{n:<3d} {'yes' if r['astro'] else 'no':>5s} "
                 f"{int(r['wrong']):5d} {int(r['alarms']):4d}/{n}"
             )
+    tracking(faces[0])
     return 0
+
+
+def tracking(scene: Scene, frames: int = 30) -> None:
+    """Median ms per frame: detection frames and followed frames of a moving face."""
+    assert scene.face is not None
+    big = cv2.resize(scene.image, DEVICE, interpolation=cv2.INTER_CUBIC)
+    tracker = FaceTracker(FaceDetector(), every=6)
+    detect, follow = [], []
+    for i in range(frames):
+        f = np.roll(big, 6 * i, axis=1)
+        t0 = time.perf_counter()
+        tracker.update(f)
+        (detect if i % tracker.every == 0 else follow).append(time.perf_counter() - t0)
+    print(
+        f"tracking 1280x800, detection every {tracker.every} frames: detection frame "
+        f"{1e3 * statistics.median(detect):.1f} ms, followed frame "
+        f"{1e3 * statistics.median(follow):.2f} ms (median; {len(follow)} followed)"
+    )
 
 
 if __name__ == "__main__":

@@ -19,6 +19,8 @@ import numpy as np
 from numpy.typing import NDArray
 from skimage import data
 
+from adaproj_edge.content.facetrack import box_iou
+
 SCENE = (640, 400)
 ASTRONAUT_FACE = (168, 45, 118, 150)
 """x, y, w, h of her face in ``astronaut()`` (hand-marked: hairline to chin)."""
@@ -107,10 +109,7 @@ def non_face_scenes(n: int = 100, seed: int = 2, sizes: tuple[int, int] = (56, 1
 
 def iou(a: tuple[float, ...], b: tuple[float, ...]) -> float:
     """Intersection over union of two ``x, y, w, h`` boxes."""
-    ix = max(0.0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
-    iy = max(0.0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
-    inter = ix * iy
-    return inter / (a[2] * a[3] + b[2] * b[3] - inter)
+    return box_iou(np.asarray(a, np.float64), np.asarray(b, np.float64))
 
 
 def region_ratio(values: NDArray[np.floating], box: tuple[int, int, int, int]) -> float:
