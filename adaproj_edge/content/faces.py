@@ -102,6 +102,9 @@ class FaceDetector:
         h, w = gray.shape[:2]
         scale = min(1.0, self.long_side / max(w, h))
         if scale < 1.0:
+            k = int(1.0 / scale)
+            if k >= 2:  # OpenCV's integer-factor area average is ~10x faster than a general one
+                gray = cv2.resize(gray, None, fx=1.0 / k, fy=1.0 / k, interpolation=cv2.INTER_AREA)
             size = (max(1, round(w * scale)), max(1, round(h * scale)))
             gray = cv2.resize(gray, size, interpolation=cv2.INTER_AREA)
         return np.asarray(cv2.equalizeHist(gray), np.uint8), scale
