@@ -238,7 +238,7 @@ def check_video(
     if cap is None:
         raise VideoError(f"{what} cannot be opened as a video")
     try:
-        for index in (0, info.frame_count - 1):
+        for index in sorted({0, info.frame_count - 1}):
             if index and not cap.set(cv2.CAP_PROP_POS_FRAMES, float(index)):
                 raise VideoError(f"{what}: cannot seek to frame {index + 1} (corrupt index?)")
             ok, frame = cap.read()

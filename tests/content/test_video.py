@@ -67,6 +67,11 @@ def test_truncated_clips_refused(tmp_path: Path, ext: str, fourcc: str, keep: fl
         check_video(cut)
 
 
+def test_a_single_frame_clip_passes(tmp_path: Path) -> None:
+    info = check_video(write_clip(tmp_path / "one.avi", "MJPG", n=1))
+    assert info.frame_count == 1
+
+
 def test_zero_frames_refused(tmp_path: Path) -> None:
     path = write_clip(tmp_path / "c.avi", "MJPG", n=0)
     with pytest.raises(VideoError, match=r"no frames|cannot be opened"):
