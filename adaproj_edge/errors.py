@@ -55,6 +55,11 @@ class ContentError(InputError):
     """Content refused by the device's store: a bad name, too big, not an image."""
 
 
+class VideoError(ContentError):
+    """A video clip cannot be used: not a video, unsupported codec, too large or long,
+    no frames, truncated or corrupt."""
+
+
 class ContentNotFoundError(ContentError):
     """No content item (or no pending upload) of that name on the device."""
 

@@ -3,7 +3,7 @@
 replaced, in the same run.
 
 Every depth frame of the committed sessions (cylinder, corner, sphere) goes through the
-reference (``tests/test_depth_fast.py``: ``depth.py`` as it was before the speed-up,
+reference (``tests/geometry/test_depth_fast.py``: ``depth.py`` as it was before the speed-up,
 the side-window fits on the whole supersampled lattice) and through
 ``adaproj_edge.geometry.depth.estimate_surface``, interleaved, on one core
 (``OPENBLAS_NUM_THREADS=1``, ``cv2.setNumThreads(1)``). Prints median and p95 wall

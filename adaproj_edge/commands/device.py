@@ -45,7 +45,9 @@ def run(args: argparse.Namespace) -> int:
                 r = await client.call(c, client.ListRead())
                 for i in r.items:
                     mark = "*" if r.active and i["name"] == r.active.get("image") else " "
-                    print(f"{mark} {i['name']:40s} {i['len']:>10d} B  {i['w']}x{i['h']}")
+                    dur = i.get("dur")
+                    length = f"  {dur:.1f} s" if isinstance(dur, (int, float)) else ""
+                    print(f"{mark} {i['name']:40s} {i['len']:>10d} B  {i['w']}x{i['h']}{length}")
                 for q in r.pending:
                     print(f"  {q['name']:40s} {q['off']:>10d}/{q['len']} B received (pending)")
                 print(f"used {r.used} of {r.quota} bytes")

@@ -1,4 +1,5 @@
-"""``adaproj push``: send an image (and a mask) to the projector over USB serial."""
+"""``adaproj push``: send an image or a video clip (and a mask) to the projector over
+USB serial."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from adaproj_edge.errors import ImageError
-from adaproj_edge.link.store import Limits, check_image, check_name
+from adaproj_edge.link.contentcheck import Limits, check_content
+from adaproj_edge.link.store import check_name
 from adaproj_edge.warp.engine import MODES
 
 DEFAULT_PORT = "/dev/ttyACM0"
@@ -34,14 +36,16 @@ def settings_of(args: argparse.Namespace) -> dict[str, Any] | None:
 def register(sub: argparse._SubParsersAction[Any]) -> None:
     p = sub.add_parser(
         "push",
-        help="upload an image (and a mask) to the projector, resuming a cut transfer",
+        help="upload an image or a clip (and a mask) to the projector, resuming a cut transfer",
         description=(
-            "Upload IMAGE (PNG or JPEG) to the device's content store over USB serial "
-            "(SMP). An interrupted transfer resumes where the device stopped; a file the "
-            "device already holds is not sent again."
+            "Upload IMAGE (PNG or JPEG, or a video clip: MP4, AVI or MKV holding H.264, "
+            "MPEG-4 or MJPEG) to the device's content store over USB serial (SMP). The "
+            "file is checked here as the device will check it before a byte is sent. An "
+            "interrupted transfer resumes where the device stopped; a file the device "
+            "already holds is not sent again."
         ),
     )
-    p.add_argument("image", type=Path, help="the content (PNG or JPEG)")
+    p.add_argument("image", type=Path, help="the content (PNG, JPEG, MP4, AVI or MKV)")
     p.add_argument("--mask", type=Path, help="user mask (PNG, white = important)")
     p.add_argument("--name", help="name on the device (default: the file's name)")
     p.add_argument("--activate", action="store_true", help="show it once uploaded")
@@ -83,7 +87,7 @@ def local_item(path: Path, name: str | None) -> tuple[str, bytes]:
     except OSError as e:
         raise ImageError(f"cannot read {path}: {e.strerror or e}") from None
     device_name = check_name(name or path.name)
-    check_image(data, str(path), Limits())
+    check_content(path, device_name, Limits())
     return device_name, data
 
 

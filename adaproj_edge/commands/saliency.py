@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+import cv2
+
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD, content_map_for
 from adaproj_edge.content.mask import load_mask
 from adaproj_edge.content.model import DEFAULT_MODEL_PATH, SaliencyModel
@@ -17,10 +19,11 @@ from adaproj_edge.fileio import read_image, write_png
 def register(sub: argparse._SubParsersAction[Any]) -> None:
     p = sub.add_parser(
         "saliency",
-        help="compute an image's content map (saliency, max user mask)",
+        help="compute an image's content map (saliency, faces, user mask)",
         description=(
-            "Write the content map C = max(saliency, mask) of IMAGE as a gray PNG of the "
-            "image's size (white = important), optionally a picture of it over the image."
+            "Write the content map C = max(saliency, faces, mask) of IMAGE as a gray PNG "
+            "of the image's size (white = important), optionally a picture of it over the "
+            "image with the salient region outlined and the faces found drawn as ellipses."
         ),
     )
     p.add_argument("image", type=Path, help="the content (PNG or JPEG)")
@@ -39,6 +42,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         default=DEFAULT_THRESHOLD,
         help="T of the paper's eq. 5; the overlay outlines C >= T (default %(default)s)",
     )
+    p.add_argument(
+        "--no-faces", action="store_true", help="leave faces out: C = max(saliency, mask)"
+    )
     p.set_defaults(run=run)
 
 
@@ -48,10 +54,13 @@ def run(args: argparse.Namespace) -> int:
     image = read_image(args.image)
     h, w = image.shape[:2]
     mask = None if args.mask is None else load_mask(args.mask, (w, h))
-    cmap = content_map_for(image, mask, SaliencyModel(args.model), threshold=args.threshold)
+    cv2.setNumThreads(1)  # this command's thread policy: one core, like the device's maps
+    model = SaliencyModel(args.model)
+    cmap = content_map_for(image, mask, model, threshold=args.threshold, faces=not args.no_faces)
     write_png(args.out, to_gray(cmap.full_size()))
     if args.overlay is not None:
         write_png(args.overlay, overlay(image, cmap))
     share = float(cmap.salient().mean())
-    print(f"wrote {args.out} ({w}x{h}); {share:.0%} salient (C >= {cmap.threshold})")
+    faces = "" if args.no_faces else f"; {len(cmap.faces)} face(s)"
+    print(f"wrote {args.out} ({w}x{h}); {share:.0%} salient (C >= {cmap.threshold}){faces}")
     return 0

@@ -263,7 +263,14 @@ class Server:
         active = self.store.active()
         return {
             "items": [
-                {"name": i.name, "len": i.size, "w": i.width, "h": i.height}
+                {
+                    "name": i.name,
+                    "len": i.size,
+                    "w": i.width,
+                    "h": i.height,
+                    "kind": i.kind,
+                    "dur": i.duration,
+                }
                 for i in self.store.items()
             ],
             "pending": [
