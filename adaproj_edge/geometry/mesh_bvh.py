@@ -27,6 +27,7 @@ import os
 import sys
 import tempfile
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 import warp as wp
@@ -37,7 +38,6 @@ from adaproj_edge.geometry.ray_triangle import (
     MIN_DET,
     MIN_T,
     intersect_brute_force,
-    ray_triangle,
     triangle_edges,
 )
 
@@ -48,22 +48,81 @@ SIDESTEP = 1e-6
 ON_EDGE = 1e-9
 """Barycentric slack: a ray this close outside a triangle's edge still hits it."""
 
-wp.set_module_options({"enable_backward": False})  # no gradients: half the compile time
+MISS, HIT, BRUTE = 0, 1, 2
+"""What the kernel says of each ray: no hit; ``t`` is the hit; cast it by brute force."""
+
+# no gradients (half the compile time); no fused multiply-add: the float64 arithmetic
+# is then numpy's, operation for operation (ray_triangle.ray_triangle)
+wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
 
-@wp.kernel  # type: ignore[untyped-decorator]  # warp is Any to mypy (pyproject)
+@wp.func  # type: ignore[untyped-decorator]  # warp is Any to mypy (pyproject)
+def _sidestep(o: wp.vec3d, d: wp.vec3d, step: wp.float64) -> wp.vec3d:
+    """``o`` moved by ``step`` (relative to its size) at right angles to ``d``."""
+    ax = wp.abs(d[0])
+    ay = wp.abs(d[1])
+    az = wp.abs(d[2])
+    axis = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(1.0))
+    if ax <= ay and ax <= az:
+        axis = wp.vec3d(wp.float64(1.0), wp.float64(0.0), wp.float64(0.0))
+    elif ay <= az:
+        axis = wp.vec3d(wp.float64(0.0), wp.float64(1.0), wp.float64(0.0))
+    side = wp.cross(d, axis)
+    size = wp.max(wp.max(wp.abs(o[0]), wp.abs(o[1])), wp.abs(o[2]))
+    return o + side * (step * (wp.float64(1.0) + size) / wp.length(side))
+
+
+@wp.kernel  # type: ignore[untyped-decorator]
 def _nearest_hits(
     mesh: wp.uint64,
-    origins: wp.array[wp.vec3],
-    dirs: wp.array[wp.vec3],
-    faces: wp.array[wp.int32],
+    origins: wp.array[wp.vec3d],
+    dirs: wp.array[wp.vec3d],
+    v0: wp.array[wp.vec3d],
+    e1: wp.array[wp.vec3d],
+    e2: wp.array[wp.vec3d],
+    sidestep: wp.float64,
+    on_edge: wp.float64,
+    min_det: wp.float64,
+    min_t: wp.float64,
+    t_out: wp.array[wp.float64],
+    what: wp.array[wp.int32],
 ) -> None:
     i = wp.tid()
-    hit = wp.mesh_query_ray(mesh, origins[i], dirs[i], 3.0e38)
+    o = origins[i]
+    d = dirs[i]
+    what[i] = MISS
+    face = wp.int32(-1)
+    second = False
+    hit = wp.mesh_query_ray(mesh, wp.vec3(o), wp.vec3(d), 3.0e38)
     if hit.result:
-        faces[i] = hit.face
+        face = hit.face
     else:
-        faces[i] = -1
+        # a ray through a vertex can slip past the float32 boxes: look again a hair
+        # to the side, and keep the triangle only if the ray itself meets it (float64)
+        again = wp.mesh_query_ray(mesh, wp.vec3(_sidestep(o, d, sidestep)), wp.vec3(d), 3.0e38)
+        if again.result:
+            face = again.face
+            second = True
+    if face >= 0:
+        # Moller-Trumbore in float64 on that triangle, as ray_triangle.ray_triangle
+        a = e1[face]
+        b = e2[face]
+        p = wp.cross(d, b)
+        det = a[0] * p[0] + a[1] * p[1] + a[2] * p[2]
+        inv = wp.float64(1.0) / det
+        tv = o - v0[face]
+        u = (tv[0] * p[0] + tv[1] * p[1] + tv[2] * p[2]) * inv
+        q = wp.cross(tv, a)
+        v = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) * inv
+        t = (b[0] * q[0] + b[1] * q[1] + b[2] * q[2]) * inv
+        inside = wp.min(wp.min(u, v), wp.float64(1.0) - u - v) >= -on_edge
+        if second and not inside:
+            return
+        if wp.abs(det) > min_det and t > min_t:
+            t_out[i] = t
+            what[i] = HIT
+        else:
+            what[i] = BRUTE  # parallel in float64, or at/behind the origin
 
 
 @contextlib.contextmanager
@@ -113,13 +172,12 @@ class MeshBvh:
         _ready()
         self.vertices = vertices
         self.faces = faces
-        self._v0, self._e1, self._e2 = triangle_edges(vertices, faces)
+        self._v0, self._e1, self._e2 = (
+            _vec3d(np.ascontiguousarray(a)) for a in triangle_edges(vertices, faces)
+        )
         self._points = wp.array(vertices.astype(np.float32), dtype=wp.vec3, device="cpu")
         self._indices = wp.array(faces.astype(np.int32).ravel(), dtype=wp.int32, device="cpu")
         self._mesh = wp.Mesh(points=self._points, indices=self._indices, bvh_constructor="sah")
-        pad = 1e-6 * (1.0 + float(np.abs(vertices).max()))
-        self._lower = vertices.min(axis=0) - pad
-        self._upper = vertices.max(axis=0) + pad
 
     def cast(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
         """Ray parameter t (N,) of the nearest hit with t > 0 of each ray, NaN where none.
@@ -134,57 +192,29 @@ class MeshBvh:
         (N,) float64
             t of the nearest hit (the point is ``origin + t * dir``), NaN for none.
         """
-        ok = np.all(np.isfinite(origins), axis=1) & np.all(np.isfinite(dirs), axis=1)
-        ok &= np.any(dirs != 0, axis=1)
-        face = np.full(len(dirs), -1, np.int64)
-        face[ok] = self._faces_hit(origins[ok], dirs[ok])
-        # A ray through a vertex can slip past Warp's float32 bounding boxes: look
-        # again from a hair to the side, and keep what the ray itself hits in float64.
-        again = np.flatnonzero(ok & (face < 0) & self._meets_bounds(origins, dirs))
-        if len(again):
-            o, d = origins[again], dirs[again]
-            side = np.cross(d, np.eye(3)[np.argmin(np.abs(d), axis=1)])  # normal to d
-            with np.errstate(all="ignore"):  # a tiny d: a NaN side, which misses
-                step = SIDESTEP * (1.0 + np.abs(o).max(axis=1)) / np.linalg.norm(side, axis=1)
-            f = self._faces_hit(o + side * step[:, None], d)
-            _, u, v, _ = ray_triangle(o, d, self._v0[f], self._e1[f], self._e2[f])
-            with np.errstate(invalid="ignore"):
-                inside = np.minimum(np.minimum(u, v), 1 - u - v) >= -ON_EDGE
-            face[again] = np.where((f >= 0) & inside, f, -1)
-        return self._distances(origins, dirs, face)
-
-    def _faces_hit(self, origins: FloatArray, dirs: FloatArray) -> NDArray[np.int64]:
-        """Index of the triangle each ray hits first (Warp, float32), -1 for none."""
-        n = len(dirs)
-        if n == 0:
-            return np.zeros(0, np.int64)
-        o32 = wp.array(origins.astype(np.float32), dtype=wp.vec3, device="cpu")
-        d32 = wp.array(dirs.astype(np.float32), dtype=wp.vec3, device="cpu")
-        f32 = wp.empty(n, dtype=wp.int32, device="cpu")
-        wp.launch(_nearest_hits, dim=n, inputs=[self._mesh.id, o32, d32, f32], device="cpu")
-        return f32.numpy().astype(np.int64)  # type: ignore[no-any-return]
-
-    def _meets_bounds(self, origins: FloatArray, dirs: FloatArray) -> NDArray[np.bool_]:
-        """Which rays meet the mesh's bounding box (slightly grown), float64 slab test."""
-        with np.errstate(all="ignore"):  # axis-parallel rays: +-inf or NaN, handled
-            t0 = (self._lower - origins) / dirs
-            t1 = (self._upper - origins) / dirs
-            near = np.fmax.reduce(np.fmin(t0, t1), axis=1)
-            far = np.fmin.reduce(np.fmax(t0, t1), axis=1)
-            meets: NDArray[np.bool_] = far >= np.maximum(near, 0.0)
-        return meets
-
-    def _distances(
-        self, origins: FloatArray, dirs: FloatArray, face: NDArray[np.int64]
-    ) -> FloatArray:
-        """Float64 t of each ray on its hit triangle (``face`` >= 0), NaN for none."""
         out = np.full(len(dirs), np.nan)
-        hit = np.flatnonzero(face >= 0)
-        f = face[hit]
-        t, _, _, det = ray_triangle(origins[hit], dirs[hit], self._v0[f], self._e1[f], self._e2[f])
-        good = (np.abs(det) > MIN_DET) & (t > MIN_T)
-        out[hit[good]] = t[good]
-        bad = hit[~good]  # parallel in float64, or at/behind the origin: by brute force
-        if len(bad):
-            out[bad] = intersect_brute_force(self.vertices, self.faces, origins[bad], dirs[bad])
+        ok = np.isfinite(origins).all(axis=1) & np.isfinite(dirs).all(axis=1)
+        ok &= (dirs != 0).any(axis=1)  # zero, infinite or NaN rays meet nothing
+        idx = None if ok.all() else np.flatnonzero(ok)
+        o = np.ascontiguousarray(origins if idx is None else origins[idx], np.float64)
+        d = np.ascontiguousarray(dirs if idx is None else dirs[idx], np.float64)
+        if len(d) == 0:
+            return out
+        t = wp.empty(len(d), dtype=wp.float64, device="cpu")
+        what = wp.empty(len(d), dtype=wp.int32, device="cpu")
+        inputs = [self._mesh.id, _vec3d(o), _vec3d(d), self._v0, self._e1, self._e2]
+        inputs += [SIDESTEP, ON_EDGE, MIN_DET, MIN_T, t, what]
+        wp.launch(_nearest_hits, dim=len(d), inputs=inputs, device="cpu")
+        found = np.where(what.numpy() == HIT, t.numpy(), np.nan)
+        brute = np.flatnonzero(what.numpy() == BRUTE)
+        if len(brute):
+            found[brute] = intersect_brute_force(self.vertices, self.faces, o[brute], d[brute])
+        if idx is None:
+            return found
+        out[idx] = found
         return out
+
+
+def _vec3d(a: FloatArray) -> Any:
+    """A contiguous (N, 3) float64 array as a Warp array of vec3d (no copy on the CPU)."""
+    return wp.array(a, dtype=wp.vec3d, device="cpu", copy=False)
