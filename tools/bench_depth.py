@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT))  # for tests.test_depth_fast (the reference)
 
 from adaproj_edge.geometry.depth import estimate_surface  # noqa: E402
 from adaproj_edge.session.reader import read_session  # noqa: E402
-from tests.test_depth_fast import ref_estimate_surface  # noqa: E402
+from tests.geometry.test_depth_fast import ref_estimate_surface  # noqa: E402
 
 SESSIONS = ("cylinder", "corner", "sphere")
 
