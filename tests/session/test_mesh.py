@@ -16,7 +16,8 @@ from adaproj_edge.geometry.mesh_surface import MeshSurface, load_mesh, ply_bytes
 from adaproj_edge.geometry.rotations import rotation_of
 from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.session.reader import read_session
-from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate
+from adaproj_edge.session.records import TruthPose
+from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate, true_surface
 
 QUAD_OBJ = """# a 2 m square at z = 1.5, as a quad and with texture/normal indices
 v -1 -1 1.5
@@ -119,6 +120,26 @@ def test_simulated_depth_of_a_fine_mesh_is_the_analytic_one_within_its_chord_err
     # and the silhouettes agree up to the chord error (a pixel or two at the rim)
     edge = np.isfinite(got) != np.isfinite(exact[..., 2])
     assert edge.sum() < 0.01 * np.isfinite(exact[..., 2]).sum()
+
+
+def test_the_scorers_truth_on_a_mesh_is_the_analytic_one_within_its_chord_error() -> None:
+    """``true_surface`` (what the replay scores against) casts the mesh the same way."""
+    centre, r = np.array([0.05, 0.0, 2.2]), 0.62
+    mesh = uv_sphere((0.05, 0.0, 2.2), r, 96, 192)
+    pose = TruthPose(0, (0.02, -0.03, 0.05), (0.03, -0.02, 0.01, 0.9993))
+    proj = Calibration.default().projector
+    got = true_surface(Scene(mesh, {}), pose, proj, (41, 61)).points[..., 2]
+    exact = true_surface(Scene(Sphere("s", (0.05, 0.0, 2.2), r, False), {}), pose, proj, (41, 61))
+    pts = exact.points.astype(np.float64)
+    z = pts[..., 2]
+    ray_w = pts @ rotation_of(pose.quaternion).T  # projector -> world, from its centre
+    normal = (ray_w + np.asarray(pose.position) - centre) / r
+    cos = np.abs(np.sum(normal * ray_w, axis=-1)) / np.linalg.norm(ray_w, axis=-1)
+    front = np.isfinite(z) & (cos > 0.3)
+    assert front.mean() > 0.2 and np.isfinite(got[front]).all()
+    # float32 points: 1e-6; the facets are farther by up to the chord error / cos
+    tol = sagitta(mesh, centre, r) / cos[front] + 1e-6
+    assert np.all(np.abs(got[front] - z[front]) <= tol)
 
 
 def test_a_mesh_reaching_behind_the_camera_is_seen() -> None:
