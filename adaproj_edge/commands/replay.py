@@ -8,8 +8,7 @@ import logging
 from dataclasses import replace
 from typing import Any
 
-from adaproj_edge.app.replay import ReplayOptions, replay_session
-from adaproj_edge.app.runtime import AppSettings
+from adaproj_edge.commands._outputs import check_output_dir
 from adaproj_edge.resources import default_session
 
 log = logging.getLogger(__name__)
@@ -41,6 +40,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.out is not None:
+        check_output_dir(args.out, "output folder")
+
+    from adaproj_edge.app.replay import ReplayOptions, replay_session
+    from adaproj_edge.app.runtime import AppSettings
+
     settings = replace(AppSettings(), caching=not args.no_cache, warm_start=not args.no_warm_start)
     options = ReplayOptions(settings, all_frames=args.all_frames, score=not args.no_score)
     s = replay_session(args.session, args.out, options)
