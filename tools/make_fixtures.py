@@ -21,6 +21,7 @@ sys.path.insert(0, str(ROOT))
 from adaproj_edge.geometry.calibration import Calibration  # noqa: E402
 from adaproj_edge.geometry.mesh_surface import ply_bytes, uv_sphere  # noqa: E402
 from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session  # noqa: E402
+from adaproj_edge.threads import apply_thread_policy  # noqa: E402
 
 OUT = ROOT / "tests" / "fixtures" / "sessions"
 SECONDS = 3.0
@@ -59,6 +60,7 @@ def make_golden() -> None:
 
 
 def main() -> int:
+    apply_thread_policy()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--golden", action="store_true", help="also rewrite the golden outputs")
     ap.add_argument("--golden-only", action="store_true", help="only rewrite the golden outputs")

@@ -90,3 +90,18 @@ def test_policy_in_force_inside_a_command_in_this_process(
     assert len(seen) == 1
     assert {lib["user_api"] for lib in seen[0]} >= {"blas", "opencv"}
     assert all(lib["num_threads"] == 1 for lib in seen[0])
+
+
+UNITS = sorted((Path(__file__).resolve().parents[2] / "hw" / "systemd").glob("*.service"))
+
+
+@pytest.mark.parametrize("path", UNITS, ids=lambda p: p.name)
+def test_units_running_adaproj_state_their_thread_policy(path: Path) -> None:
+    lines = [x.strip() for x in path.read_text().splitlines()]
+    exec_start = next(x for x in lines if x.startswith("ExecStart="))
+    env = dict(
+        x.removeprefix("Environment=").split("=", 1) for x in lines if x.startswith("Environment=")
+    )
+    runs_adaproj = Path(exec_start.split()[0].removeprefix("ExecStart=")).name == "adaproj"
+    assert (THREADS_ENV in env) == runs_adaproj
+    assert env.get(THREADS_ENV, "1") == "1"  # the default, stated where it applies
