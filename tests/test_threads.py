@@ -35,7 +35,7 @@ def test_any_value_gives_a_positive_count_or_auto(text: str) -> None:
     assert n is None or n >= 1
     if n is None:
         assert text.strip().lower() == "auto"
-    elif text.strip().isdigit() and int(text.strip()) >= 1:
+    elif text.strip().isdecimal() and int(text.strip()) >= 1:
         assert n == int(text.strip())
 
 
