@@ -173,7 +173,7 @@ def load_npz(
     """
     data = read_input(path, what, error)
     if not data.startswith(b"PK"):  # an .npz is a zip file; np.load would try pickle
-        raise error(f"{what} {path} is not an .npz file (numpy's zip of arrays)")
+        raise error(f"cannot read {what} {path}: not an .npz file (numpy's zip of arrays)")
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as f:
             arrays = {k: np.asarray(f[k]) for k in f.files}
