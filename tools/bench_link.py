@@ -39,6 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from adaproj_edge.hal.serial import PtyPair
 from adaproj_edge.link import client
+from adaproj_edge.threads import apply_thread_policy
 
 
 def test_png(size: int) -> bytes:
@@ -73,6 +74,7 @@ async def upload_once(
 
 
 def main() -> int:
+    apply_thread_policy(1)  # one thread: the figures are per core
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size-kb", type=int, default=512, help="PNG size to upload")
     ap.add_argument("--rounds", type=int, default=3)

@@ -44,6 +44,7 @@ from adaproj_edge.link.device import StandaloneDevice
 from adaproj_edge.link.framing import FrameDecoder
 from adaproj_edge.link.server import Server
 from adaproj_edge.link.store import ContentStore, Limits
+from adaproj_edge.threads import apply_thread_policy
 from tests.link.fuzz_cases import dispatch_target, messages, streams, wire_target
 
 
@@ -101,6 +102,7 @@ class Target:
 
 
 def main() -> int:
+    apply_thread_policy()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--examples", type=int, default=100_000, help="inputs in all")
     ap.add_argument("--batch", type=int, default=5000, help="inputs per hypothesis run")

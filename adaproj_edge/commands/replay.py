@@ -10,8 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from adaproj_edge.app.replay import ReplayOptions, replay_session
-from adaproj_edge.app.settings import AppSettings
+from adaproj_edge.commands._outputs import check_output_dir
 from adaproj_edge.resources import default_session
 
 log = logging.getLogger(__name__)
@@ -43,6 +42,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.out is not None:
+        check_output_dir(args.out, "output folder")
+
+    from adaproj_edge.app.replay import ReplayOptions, replay_session
+    from adaproj_edge.app.settings import AppSettings
+
     settings = replace(AppSettings(), caching=not args.no_cache, warm_start=not args.no_warm_start)
     options = ReplayOptions(settings, all_frames=args.all_frames, score=not args.no_score)
     s = replay_session(args.session, args.out, options)
