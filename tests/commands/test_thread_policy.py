@@ -71,14 +71,14 @@ def test_policy_in_force_inside_a_command_in_this_process(
 ) -> None:
     # numpy, scipy and OpenCV are loaded already here: threadpoolctl does the work
     seen: list[list[dict[str, Any]]] = []
-    real = project_module.project
+    real = project_module.show
 
     def spy(*args: Any, **kwargs: Any) -> Any:
         seen.append(threadpoolctl.threadpool_info())
         seen[-1].append({"user_api": "opencv", "num_threads": cv2.getNumThreads()})
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(project_module, "project", spy)
+    monkeypatch.setattr(project_module, "show", spy)
     monkeypatch.delenv(THREADS_ENV, raising=False)
     image = tmp_path / "img.png"
     cv2.imwrite(str(image), poster((160, 100)))
