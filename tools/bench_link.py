@@ -39,6 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from adaproj_edge.hal.serial import PtyPair
 from adaproj_edge.link import client
+from adaproj_edge.link.host_requests import FileUploadResumable
 
 
 def test_png(size: int) -> bytes:
@@ -66,7 +67,7 @@ async def upload_once(
             timeout_s=10.0,
         )
         dt = time.perf_counter() - t0
-        probe = client.FileUploadResumable(name=name, off=1, data=b"")
+        probe = FileUploadResumable(name=name, off=1, data=b"")
         return dt, chunks[0] - 1, c.get_max_cbor_and_data_size(probe)[1]
     finally:
         await c.disconnect()

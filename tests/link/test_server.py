@@ -11,7 +11,7 @@ from smp import os_management as smpos
 from smp.error import MGMT_ERR
 from smp.file_management import FS_MGMT_ERR
 
-from adaproj_edge.link.client import (
+from adaproj_edge.link.host_requests import (
     ActivateWrite,
     DeleteWrite,
     ListRead,
