@@ -393,13 +393,17 @@ async def upload(
             response = await send(client, _chunk(client, data, name, off), timeout_s)
         except _NOISE as e:
             failures += 1
-            where = "asking where it stands" if off is None else f"at byte {off} of {total}"
+            where = (
+                "while asking where the upload stands"
+                if off is None
+                else f"to the chunk at byte {off} of {total}"
+            )
             if failures >= tries:
                 raise type(e)(
-                    f"upload of {name} stopped {where}: {e} ({tries} tries in a row); the "
+                    f"upload of {name} stopped: {e} {where} ({tries} tries in a row); the "
                     "device keeps what it has received: the same command goes on from there"
                 ) from None
-            say(f"{name}: {e} {where}; reconnecting to go on ({failures + 1} of {tries})")
+            say(f"{name}: {e} {where}; reconnecting to go on (try {failures + 1} of {tries})")
             off, broken = None, True
             continue
         if success(response):

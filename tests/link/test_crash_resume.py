@@ -108,7 +108,7 @@ def committed(store: Path) -> dict[str, bytes]:
 
 async def _upload(port: str, data: bytes, name: str, on_progress: client.Progress) -> int:
     async with client.connect(port, timeout_s=1.0) as c:
-        return await client.upload(c, data, name, on_progress, timeout_s=1.0)
+        return await client.upload(c, data, name, on_progress, timeout_s=1.0, tries=1)
 
 
 async def _resume_and_check(port: str, data: bytes, name: str) -> tuple[int, dict[str, object]]:
