@@ -11,11 +11,10 @@ happened in short lines of its own.
 from __future__ import annotations
 
 import asyncio
+import io
 import os
 import random
 import statistics
-import subprocess
-import sys
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -33,6 +32,7 @@ from adaproj_edge.link.message import parse_header
 from adaproj_edge.link.server import Server, serve
 from tests.link.media import png_bytes
 from tests.link.noise import Damage, NoisyPort
+from tests.link.test_crash_resume import LinkProcess
 from tests.link.test_pty_clients import smpmgr
 
 BUF = 4096  # the fixture server's buffer
@@ -239,24 +239,15 @@ def test_smpmgr_upload_through_garbage_between_frames(line: NoisyLine, tmp_path:
 def test_adaproj_link_process_resynchronises(tmp_path: Path) -> None:
     """``adaproj link`` in its own process: a stray frame, then a stock client."""
     data = png_bytes(100, 80, seed=7)
+    log = io.StringIO()
     with PtyPair.open() as pty:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "adaproj_edge.cli", "link", "--fd", str(pty.master)]
-            + ["--store", str(tmp_path / "store")],
-            pass_fds=(pty.master,),
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        link = LinkProcess(pty, tmp_path / "store", log)
+        link.start()
         try:
-            assert proc.stderr is not None
-            for text in proc.stderr:
-                if "SMP server up" in text:
-                    break
             os.write(pty.slave, STRAYS["garbage then a partial line"])
             size = asyncio.run(stock_upload(pty.path, data, "x.png"))
         finally:
-            proc.terminate()
-            _, log = proc.communicate(timeout=10)
-    assert size == 32768 - 4  # the parameters request after the stray frame was answered
+            link.wait_dead()
+    assert size == 4096 - 4  # the parameters request after the stray frame was answered
     assert (tmp_path / "store" / "x.png").read_bytes() == data
-    assert log.count("WARNING") == 1  # the stray frame, once
+    assert log.getvalue().count("WARNING") == 1  # the stray frame, once
