@@ -15,9 +15,6 @@ import io
 import os
 import random
 import statistics
-import threading
-from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -28,15 +25,13 @@ from adaproj_edge import cli
 from adaproj_edge.hal.serial import PtyPair
 from adaproj_edge.link import client
 from adaproj_edge.link.framing import CONTINUE, START, encode_frame
-from adaproj_edge.link.message import parse_header
-from adaproj_edge.link.server import Server, serve
+from tests.link.conftest import NoisyLine
 from tests.link.media import png_bytes
-from tests.link.noise import Damage, NoisyPort
+from tests.link.noise import Damage
 from tests.link.test_crash_resume import LinkProcess
 from tests.link.test_pty_clients import smpmgr
 
 BUF = 4096  # the fixture server's buffer
-UPLOAD = (8, 0, 2)  # file group, upload, write
 
 
 def _garbage(n: int, seed: int, *, lines: bool) -> bytes:
@@ -54,44 +49,6 @@ STRAYS = {
     "garbage then a partial line": _garbage(200, 2, lines=False) + START + b"QUJD",
     "lost newline": START + b"AAAA" + CONTINUE + b"QUJD",
 }
-
-
-@dataclass
-class NoisyLine:
-    """The fixture's server answering on a pty through a :class:`NoisyPort`."""
-
-    pty: PtyPair
-    server: Server
-    port: NoisyPort
-    uploads: list[int]  # message size of every upload request handled
-
-    def requests(self) -> int:
-        return self.server.counters["requests"]
-
-
-@pytest.fixture
-def line(server: Server) -> Iterator[NoisyLine]:
-    pty = PtyPair.open()
-    port = NoisyPort(pty.port())
-    uploads: list[int] = []
-    handle = server.handle
-
-    def counting(message: bytes) -> bytes | None:
-        op, _v, _f, _n, group, _seq, cmd = parse_header(message)
-        if (group, cmd, op) == UPLOAD:
-            uploads.append(len(message))
-        return handle(message)
-
-    server.handle = counting  # type: ignore[method-assign]
-    stop = threading.Event()
-    t = threading.Thread(target=serve, args=(port, server, stop), daemon=True)
-    t.start()
-    try:
-        yield NoisyLine(pty, server, port, uploads)
-    finally:
-        stop.set()
-        t.join(5)
-        pty.close()
 
 
 async def stock_upload(path: str, data: bytes, name: str) -> int:
