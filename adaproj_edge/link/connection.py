@@ -92,7 +92,7 @@ class Link(SMPClient):
     """An ``SMPClient`` on a serial port that always learns the device's buffer size.
 
     ``smpclient`` asks for the MCUmgr parameters once at connect; when that one
-    request is lost to noise it sends everything in frames of 256 bytes (about 1/80
+    request is lost to noise it sends everything in frames of 256 bytes (about 1/100
     of the throughput of the device's 32 KiB buffer) for the whole session. A Link
     asks again until the device answers, and fails with a message that says how long
     it waited when it never does.

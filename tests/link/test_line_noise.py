@@ -173,6 +173,8 @@ def test_after_noise_an_upload_runs_at_the_clean_rate(line: NoisyLine) -> None:
                 assert (line.server.store.root / f"p{i}.png").read_bytes() == data
                 counts.append(line.requests() - before)
                 sizes.append(statistics.mean(line.uploads))
+            # at connect, at the resync, and again when the reply to that one was garbled
+            assert (c.hellos, c.buf_size) == (3, BUF)
 
     asyncio.run(go())
     assert len(line.port.rx.done) == 1 and len(line.port.tx.done) == 1
