@@ -35,7 +35,8 @@ class Damage:
 
 @dataclass
 class Mangler:
-    """Applies a list of :class:`Damage` to one direction's byte stream, chunk by chunk."""
+    """Applies a list of :class:`Damage` to one direction's byte stream, chunk by chunk,
+    and counts its frames (``frames``: start delimiters seen)."""
 
     plan: list[Damage]
     frames: int = 0
@@ -43,10 +44,14 @@ class Mangler:
     _since: int = -1
     _held: bool = False
     _flip: int | None = None
+    _last: bytes = b""
 
     def __call__(self, data: bytes) -> bytes:
-        if not self.plan and not self._held and self._flip is None:
+        if not self.plan and not self._held and self._flip is None:  # nothing to do: count
+            self.frames += (self._last + data).count(b"\x06\x09")
+            self._last = data[-1:] or self._last
             return data
+        self._last = b""
         out = bytearray()
         for b in data:
             if self._held:
