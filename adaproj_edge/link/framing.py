@@ -112,13 +112,23 @@ class FrameDecoder:
         while start < len(data):
             nl = data.find(b"\n", start)
             end = len(data) if nl < 0 else nl
+            if nl >= 0 and not self._line and end - start <= MAX_LINE:
+                inner = start + 1
+                if data.find(START, inner, end) < 0 and data.find(CONTINUE, inner, end) < 0:
+                    # the usual case, a whole line with no delimiter inside: no copying
+                    line = data[start:end]
+                    start = nl + 1
+                    message = self._take_line(line.removesuffix(b"\r"), cut=False)
+                    if message is not None:
+                        yield message
+                    continue
             yield from self._extend(data[start:end])
             if nl < 0:
                 return
             start = nl + 1
             line = bytes(self._line)
             self._line.clear()
-            message = self._take_line(line[:-1] if line.endswith(b"\r") else line, cut=False)
+            message = self._take_line(line.removesuffix(b"\r"), cut=False)
             if message is not None:
                 yield message
 
