@@ -47,6 +47,7 @@ from adaproj_edge.arrays import Image
 from adaproj_edge.content.builtin import poster, poster_mask
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
 from adaproj_edge.errors import InputError
+from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.button import ButtonEvent
 from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.display import MemoryDisplay
@@ -60,7 +61,12 @@ from adaproj_edge.session import schemas
 from adaproj_edge.session.player import Replay
 from adaproj_edge.session.reader import Scan, iter_records
 from adaproj_edge.session.records import SerialTraffic, TruthPose
-from adaproj_edge.session.simulator import Scene, scene_of_session, true_surface
+from adaproj_edge.session.simulator import (
+    Scene,
+    scene_of_session,
+    scoring_projector,
+    true_surface,
+)
 from adaproj_edge.warp.engine import WarpSettings, compute_warp
 from adaproj_edge.warp.quality import measure
 
@@ -88,6 +94,8 @@ class ReplayOptions:
     settings: AppSettings = field(default_factory=AppSettings)
     all_frames: bool = False
     score: bool = True
+    # replaces the session's calibration (its depth model stays the session's)
+    calibration: Calibration | None = None
 
 
 def builtin_item(threshold: float = DEFAULT_THRESHOLD) -> Item:
@@ -167,9 +175,11 @@ class _Frames:
 class _Scorer:
     """Distortion on the true surface: displayed map vs the warp from the truth."""
 
-    def __init__(self, scene: Scene, runtime: Runtime) -> None:
+    def __init__(self, scene: Scene, runtime: Runtime, attachments: dict[str, bytes]) -> None:
         self.scene = scene
         self.rt = runtime
+        # the projector that really lights the surface (a simulated session's true rig)
+        self.projector = scoring_projector(attachments, runtime.calibration.projector)
         self.pipeline = WarpPipeline(
             runtime.calibration.projector, runtime.settings.grid, runtime.settings.map_scale
         )
@@ -180,8 +190,7 @@ class _Scorer:
         item = rt.item
         if rt.shown_map is None or item.content_map is None:
             return
-        proj = rt.calibration.projector
-        truth = true_surface(self.scene, pose, proj, (101, 161))
+        truth = true_surface(self.scene, pose, self.projector, (101, 161))
         settings = WarpSettings(
             mode="content", grid=rt.settings.grid, threshold=item.settings.threshold
         )
@@ -320,6 +329,8 @@ def _replay(
 ) -> tuple[dict[str, Any], _Frames]:
     frames = _Frames(out_dir, options.all_frames)
     cal = replay.calibration
+    if options.calibration is not None:
+        cal = options.calibration.with_depth(cal.depth)
     display = MemoryDisplay(cal.projector.width, cal.projector.height)
     settings = replace(options.settings, keep_shown_map=options.score)
     rt = Runtime(cal, display, replay.clock, [builtin_item()], settings, mask_content_map, frames)
@@ -327,7 +338,8 @@ def _replay(
     scorer = None
     spec_raw = scan.attachments.get(schemas.TRUTH_SURFACE_ATTACHMENT)
     if options.score and spec_raw is not None:
-        scorer = _Scorer(scene_of_session(json.loads(spec_raw), scan.attachments), rt)
+        scene = scene_of_session(json.loads(spec_raw), scan.attachments)
+        scorer = _Scorer(scene, rt, scan.attachments)
     t0: int | None = None
     rss: list[float] = []
     pose: TruthPose | None = None

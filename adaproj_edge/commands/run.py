@@ -10,7 +10,7 @@ from types import FrameType
 from typing import Any
 
 from adaproj_edge.app.live import run_device
-from adaproj_edge.hal.board import Board
+from adaproj_edge.hal.board import DEVICE_CALIBRATION, Board, calibration_in_use
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +35,14 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         help="where the last good warp is kept (shown at the next boot)",
     )
     p.add_argument(
+        "--calibration",
+        type=Path,
+        default=None,
+        metavar="FILE.toml",
+        help=f"calibration file (default: {DEVICE_CALIBRATION}, written by `adaproj "
+        "calibrate`, when it exists; else the board's nominal calibration)",
+    )
+    p.add_argument(
         "--record",
         type=Path,
         default=None,
@@ -51,6 +59,9 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
 
 def run(args: argparse.Namespace) -> int:
     board = Board.load(args.board)
+    board = board.with_calibration(calibration_in_use(board, args.calibration))
+    log.info("calibration: %s", board.calibration_path)
+    board.calibration()  # a bad file is refused before the devices start
     previous = signal.signal(signal.SIGTERM, _interrupt)  # systemd's stop: close the recording
     try:
         run_device(board, args.store, args.state, record=args.record)
