@@ -154,6 +154,7 @@ def solve_imu_rotation(
     R_P_D: FloatArray,
     nominal: FloatArray,
     max_match_deg: float = 12.0,
+    normal_floor_deg: float = 0.1,
 ) -> ImuSolution:
     """Fit ``R_P_I`` (see the module's description).
 
@@ -169,6 +170,8 @@ def solve_imu_rotation(
         The board's ``R_P_I``: the start, and the answer when it cannot be measured.
     max_match_deg : float
         How far (after the predicted turn) a plane may be from its match.
+    normal_floor_deg : float
+        The least error assumed of a plane normal, for the standard error of the fit.
     """
     up0 = _up(nominal, poses)
     if len(poses) < 2:
@@ -227,7 +230,7 @@ def solve_imu_rotation(
     res = fit(pairs, np.zeros(3))
     for _ in range(2):
         err = np.linalg.norm(res.fun.reshape(-1, 3), axis=1)
-        keep = err <= max(3.0 * float(np.median(err)), np.radians(0.05))
+        keep = err <= max(3.0 * float(np.median(err)), np.radians(0.15))
         if keep.all() or keep.sum() < 3:
             break
         pairs = [q for q, k in zip(pairs, keep, strict=True) if k]
@@ -237,8 +240,11 @@ def solve_imu_rotation(
     rms = float(np.degrees(np.sqrt(np.mean(np.sum(r * r, axis=1)))))
     J = res.jac
     dof = max(r.size - 3, 1)
+    # the normals' own error is at least ``normal_floor_deg`` (a handful of matches
+    # fitted closely says little about it)
+    s2 = max(float(res.fun @ res.fun) / dof, np.radians(normal_floor_deg) ** 2)
     try:
-        cov = np.linalg.inv(J.T @ J) * float(res.fun @ res.fun) / dof
+        cov = np.linalg.inv(J.T @ J) * s2
         sigma = float(np.degrees(np.sqrt(np.trace(cov))))
     except np.linalg.LinAlgError:
         sigma = float("inf")

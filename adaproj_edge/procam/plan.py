@@ -81,13 +81,20 @@ def coverage(uv: FloatArray, size: tuple[int, int], s: PlanSettings) -> FloatArr
 
 
 def _where(missing: NDArray[np.bool_]) -> str:
-    """Which part of the frame the missing regions (rows, cols) bool mostly lie in."""
+    """Which sides of the frame the missing regions (rows, cols) lie at."""
     rows, cols = missing.shape
-    iy, ix = np.nonzero(missing)
-    y, x = iy.mean() / max(rows - 1, 1), ix.mean() / max(cols - 1, 1)
-    vert = "top" if y < 0.35 else "bottom" if y > 0.65 else ""
-    horiz = "left" if x < 0.35 else "right" if x > 0.65 else ""
-    return (f"{vert}-{horiz}" if vert and horiz else vert or horiz or "middle") + " part"
+    r3, c3 = max(rows // 3, 1), max(cols // 3, 1)
+    sides = [
+        name
+        for name, part in (
+            ("top", missing[:r3]),
+            ("bottom", missing[-r3:]),
+            ("left", missing[:, :c3]),
+            ("right", missing[:, -c3:]),
+        )
+        if part.mean() > 0.5
+    ]
+    return ", ".join(sides) + " parts" if sides else "scattered parts"
 
 
 def assess(
@@ -111,7 +118,7 @@ def assess(
     if cov < s.min_coverage:
         missing += 1
         advice.append(
-            f"aim so the projection's {_where(~cov_cells)} also lands on the walls "
+            f"aim so the projection's {_where(~cov_cells)} also land on the walls "
             f"(pairs cover {100 * cov:.0f} % of the frame)"
         )
     if depths and hi < s.min_depth_ratio * lo:

@@ -259,8 +259,10 @@ def _average_depth(frames: list[DepthFrame]) -> FloatArray:
 
 
 def _capture_turn_deg(log: ImuLog, t0: int, t1: int) -> float:
-    """How far the device turned during a capture (degrees), the gyro's bias taken
-    as its median over the capture; infinite when a short window was not still."""
+    """How far the device turned away during a capture (degrees): the largest angle of
+    the gyro integrated from the start, its bias taken as its mean over the capture
+    (a turn and back shows, a still device's noise does not); infinite when a short
+    window was not still."""
     t, g, a = log.window(t0, t1)
     if len(t) < 8:
         return 0.0
@@ -268,9 +270,9 @@ def _capture_turn_deg(log: ImuLog, t0: int, t1: int) -> float:
         sel = (t >= t[k]) & (t < t[k] + 200_000_000)
         if sel.sum() >= 8 and not is_still(g[sel], a[sel]):
             return float("inf")
-    bias = np.median(g, axis=0)
-    R = integrate_gyro(t, g, int(t[0]) - 1, int(t[-1]), bias, bias)
-    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))))
+    dt = np.diff(t, prepend=t[0]) * 1e-9
+    angle = np.cumsum((g - g.mean(axis=0)) * dt[:, None], axis=0)  # small angles
+    return float(np.degrees(np.linalg.norm(angle, axis=1).max()))
 
 
 def _check(dec: Decoded, s: ProcedureSettings, pose: int) -> None:

@@ -4,7 +4,8 @@
 (< 1 px), **poor** (what to redo and why) or **refused** (the captures cannot pin
 the calibration down: one flat plane only, too few poses, parameters the poses do
 not determine). Only good and acceptable calibrations are written. The IMU's
-rotation left at the nominal one (not measured) makes a calibration acceptable at
+rotation left at the nominal one (not measured), or measured only loosely (standard
+error over ``max_sigma_imu_deg``), makes a calibration acceptable at
 best, with the reason.
 
 :func:`report_dict` is the JSON report (every figure behind the verdict, the change
@@ -44,7 +45,7 @@ class Limits:
     max_sigma_centre_px: float = 1.5
     max_sigma_rotation_deg: float = 0.05
     max_sigma_translation_mm: float = 1.0
-    min_inliers: float = 0.8
+    max_sigma_imu_deg: float = 0.25
 
 
 @dataclass(frozen=True)
@@ -147,9 +148,16 @@ def judge(result: CalibrationResult, limits: Limits | None = None) -> Verdict:
         return Verdict("poor", f"poor ({summary}); redo the calibration: " + "; ".join(why), why)
     level = "good" if sol.rms_px < lim.good_px else "acceptable"
     notes = []
-    if not result.imu.measured:
+    imu = result.imu
+    if not imu.measured:
         level = "acceptable"
-        notes.append(f"R_P_I kept nominal: {result.imu.problem}")
+        notes.append(f"R_P_I kept nominal: {imu.problem}")
+    elif imu.sigma_deg > lim.max_sigma_imu_deg:
+        level = "acceptable"
+        notes.append(
+            f"R_P_I measured to +-{imu.sigma_deg:.2f} deg only: turn the device more between "
+            "poses, left/right and up/down"
+        )
     line = f"{level}: {summary}" + ("; " + "; ".join(notes) if notes else "")
     return Verdict(level, line, notes)
 
@@ -205,7 +213,7 @@ _COLOURS = [(230, 160, 40), (60, 200, 60), (40, 160, 230), (200, 80, 200), (40, 
 
 
 def report_picture(
-    result: CalibrationResult, verdict: Verdict, scale: float = 0.5, magnify: float = 50.0
+    result: CalibrationResult, verdict: Verdict, scale: float = 0.5, magnify: float = 20.0
 ) -> Image:
     """The picture (h, w, 3) BGR uint8: pairs and residuals over the projector frame
     (``scale`` of its size, residuals ``magnify`` times), depth ranges below."""

@@ -75,18 +75,18 @@ MOVE_S = 1.5
 REACTION_S = 0.6
 
 # Stops for a scene in front of the device at 1.3-2 m: (tx, ty, tz, rx, ry, rz),
-# metres and rotation vector (radians) in W. Distances vary by ~1.6x, the turns
-# between them mix yaw, pitch and roll.
+# metres and rotation vector (radians) in W. Distances vary by ~1.6x; the turns from
+# one stop to the next are left/right and up/down in turn (and a little roll).
 STOPS = np.array(
     [
         [0.00, 0.00, 0.00, 0.00, 0.00, 0.00],
-        [0.12, 0.04, 0.45, 0.10, -0.22, 0.03],
-        [-0.18, -0.05, -0.35, -0.14, 0.22, -0.05],
-        [0.08, 0.10, 0.30, 0.18, 0.10, 0.06],
-        [-0.10, -0.10, -0.15, -0.20, -0.14, -0.02],
-        [0.02, 0.05, 0.60, 0.06, 0.02, -0.08],
-        [0.15, -0.04, 0.15, -0.08, -0.28, 0.04],
-        [-0.05, 0.08, -0.25, 0.22, 0.18, 0.0],
+        [0.12, 0.04, 0.45, 0.04, -0.22, 0.03],
+        [-0.18, -0.05, -0.35, 0.24, -0.18, -0.04],
+        [0.08, 0.10, 0.30, 0.10, 0.16, 0.05],
+        [-0.10, -0.10, -0.15, -0.16, 0.10, -0.03],
+        [0.02, 0.05, 0.60, -0.05, -0.12, 0.06],
+        [0.15, -0.04, 0.15, 0.18, 0.06, 0.00],
+        [-0.05, 0.08, -0.25, -0.10, 0.24, -0.05],
     ]
 )
 

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+from google.protobuf.message import DecodeError  # type: ignore[import-untyped]
 
 from adaproj_edge.errors import InputError
 from adaproj_edge.hal.button import ButtonEvent
@@ -152,5 +153,5 @@ def decode(topic: str, data: bytes, log_time: int, sequence: int) -> Record | No
         if topic == s.PATTERN:
             return PatternShown(int(d["t_ns"]), int(d["pose"]), int(d["index"]), str(d["name"]))
         return TruthPose(int(d["t_ns"]), _vec(d["position"], 3), _vec(d["quaternion"], 4))
-    except (KeyError, TypeError, ValueError) as e:
+    except (KeyError, TypeError, ValueError, DecodeError) as e:
         raise InputError(f"malformed {topic} message at {log_time} ns: {e}") from None
