@@ -29,11 +29,11 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))  # for tests.test_depth_fast (the reference)
+sys.path.insert(0, str(ROOT))  # for tests.geometry.test_depth_fast (the reference)
 
 from adaproj_edge.geometry.depth import estimate_surface  # noqa: E402
 from adaproj_edge.session.reader import read_session  # noqa: E402
-from tests.test_depth_fast import ref_estimate_surface  # noqa: E402
+from tests.geometry.test_depth_fast import ref_estimate_surface  # noqa: E402
 
 SESSIONS = ("cylinder", "corner", "sphere")
 

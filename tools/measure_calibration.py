@@ -44,9 +44,9 @@ from adaproj_edge.geometry.calibration import Calibration  # noqa: E402
 from adaproj_edge.hal.board import Board  # noqa: E402
 from adaproj_edge.procam.plan import PlanSettings  # noqa: E402
 from adaproj_edge.procam.procedure import ProcedureSettings, capture_poses  # noqa: E402
-from adaproj_edge.procam.replay import recorded_capture  # noqa: E402
 from adaproj_edge.procam.report import changes, judge  # noqa: E402
 from adaproj_edge.procam.result import CalibrationResult, solve_capture  # noqa: E402
+from adaproj_edge.procam.session_devices import recorded_capture  # noqa: E402
 from adaproj_edge.session.calibration_sim import (  # noqa: E402
     CalibrationSimSettings,
     perturbed_rig,
@@ -109,7 +109,8 @@ def accuracy(tmp: Path) -> None:
         print(
             f"{scene:11s} {poses:5d} {err['focal_pct']:8.4f} {err['principal_px']:6.3f} "
             f"{err['T_P_D_deg']:6.4f} {err['T_P_D_mm']:6.3f} {err['R_P_I_deg']:9.3f} "
-            f"{result.projector.rms_px:6.3f}  {verdict.level} ({cpu:.1f} s CPU)",
+            f"{result.projector.rms_px:6.3f}  {verdict.level} (R_P_I +-{result.imu.sigma_deg:.2f} "
+            f"deg; {cpu:.1f} s CPU)",
             flush=True,
         )
         if verdict.level == "refused":

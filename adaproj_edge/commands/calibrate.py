@@ -20,7 +20,7 @@ from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
 from adaproj_edge.procam.outputs import calibrate
 from adaproj_edge.procam.plan import PlanSettings
 from adaproj_edge.procam.procedure import Devices, LiveShow, ProcedureSettings
-from adaproj_edge.procam.replay import recorded_capture
+from adaproj_edge.procam.session_devices import recorded_capture
 from adaproj_edge.session import schemas
 from adaproj_edge.session.calibration_sim import camera_attachment, capture_settings
 from adaproj_edge.session.codec import Record

@@ -21,6 +21,7 @@ Format::
     [serial]
     device = "/dev/ttyGS0"
     [calibrate]            # optional: `adaproj calibrate`, any field of CameraSettings
+                           # (not [calibration]: that name is the key above)
     socket = "CAM_A"       # the camera depth is aligned to ([depth] align_to)
     width = 1280           # its frames for the structured light
     height = 800

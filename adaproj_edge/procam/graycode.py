@@ -14,8 +14,9 @@ pixels) blur to grey. A bit counts as resolved when the median contrast
 ``bit_contrast``; every pixel is then decoded to a *cell* of ``2^k`` projector
 pixels (the bits above the first unresolved one), whose centre is its projector
 coordinate. A Gray code changes one bit between neighbouring cells, so a bit read
-wrongly at a stripe edge moves the pixel to the neighbouring cell only; the
-sub-cell position comes from fitting many pixels (:mod:`adaproj_edge.procam.pairs`).
+wrongly at a stripe edge moves the pixel to the neighbouring cell only; positions
+finer than a cell come from the cells' edges, where the bit that changes crosses
+zero (:func:`adaproj_edge.procam.pairs.edge_samples`).
 
 Pure: arrays in, arrays out.
 """

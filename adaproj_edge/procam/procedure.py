@@ -13,9 +13,10 @@ For each pose (:func:`capture_poses`):
    the patterns ran is told so and the pose is taken again (at most
    ``max_retakes`` times in a row);
 5. the captures are decoded and checked — nothing decoded (projector off, lens cap
-   on, camera looking elsewhere), saturated images, ambient light drowning the
-   patterns each end the procedure with a message that says what to do — and made
-   into point pairs;
+   on, camera looking elsewhere) ends the procedure; saturated images or ambient
+   light drowning the patterns make the pose be taken again, with what to change
+   (and end it after ``max_retakes``), each with a message that says what to do —
+   and made into point pairs;
 6. :func:`~adaproj_edge.procam.plan.assess` says how many poses are still needed
    and what to change; the procedure stops when it says enough (and
    ``min_poses`` are done) or at ``max_poses``.
@@ -34,7 +35,7 @@ depth and camera frames used, the patterns shown).
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -185,7 +186,8 @@ class ImuLog:
 
 @dataclass(frozen=True)
 class PoseCapture:
-    """One pose: its pairs, depth, decode, and IMU at rest."""
+    """One pose: its pairs, depth, decode (without the per-bit differences), and the
+    IMU at rest."""
 
     index: int
     pairs: Pairs
@@ -275,8 +277,10 @@ def _capture_turn_deg(log: ImuLog, t0: int, t1: int) -> float:
     return float(np.degrees(np.linalg.norm(angle, axis=1).max()))
 
 
-def _check(dec: Decoded, s: ProcedureSettings, pose: int) -> None:
-    """Refuse captures that cannot work, saying why."""
+def _check(dec: Decoded, s: ProcedureSettings, pose: int) -> str:
+    """What makes captures useless ("" when nothing does): nothing decoded ends the
+    procedure at once; saturation and ambient light may pass at another pose (the
+    user is told what to change)."""
     if dec.lit_fraction < s.min_lit_fraction or dec.signal < s.min_signal / 2:
         raise CalibrationError(
             f"pose {pose + 1}: nothing decodes — the camera sees no projected patterns. Is the "
@@ -284,17 +288,18 @@ def _check(dec: Decoded, s: ProcedureSettings, pose: int) -> None:
             "image?"
         )
     if dec.saturated_fraction > s.max_saturated:
-        raise CalibrationError(
+        return (
             f"pose {pose + 1}: the captures are saturated ({100 * dec.saturated_fraction:.0f} % "
-            "of the lit pixels are pure white): lower exposure_us or iso in the board's "
-            "[calibrate] section, or move further from the wall"
+            "of the lit pixels are pure white): move further from the wall, or lower "
+            "exposure_us or iso in the board's [calibrate] section"
         )
     if dec.ambient_ratio > s.max_ambient_ratio or dec.signal < s.min_signal:
-        raise CalibrationError(
+        return (
             f"pose {pose + 1}: too much ambient light (the dark pattern is "
             f"{100 * dec.ambient_ratio:.0f} % as bright as the lit one, contrast "
             f"{dec.signal:.0f} grey levels): dim the room or raise exposure_us"
         )
+    return ""
 
 
 def _capture_one(
@@ -382,9 +387,16 @@ def capture_poses(
                 "retake", f"pose {k + 1}: the device moved during the capture; hold it still"
             )
             continue
-        retakes = 0
         dec = decode([f.image for f in frames], patterns, s.decode)
-        _check(dec, s, k)
+        problem = _check(dec, s, k)
+        if problem:
+            retakes += 1
+            total_retakes += 1
+            if retakes > s.max_retakes:
+                raise CalibrationError(problem)
+            listener.say("retake", f"{problem}; taking pose {k + 1} again")
+            continue
+        retakes = 0
         z = _average_depth(depth)
         pairs = pose_pairs(dec, z, K, k, s.pairs)
         _, gw, aw = log.window(t_start, t_end)
@@ -402,7 +414,7 @@ def capture_poses(
                 k,
                 pairs,
                 z,
-                dec,
+                replace(dec, diff_x=dec.diff_x[:0], diff_y=dec.diff_y[:0]),  # (megabytes)
                 scene_planes(z, _depth_K(K, dev.camera.size, z.shape)),
                 bias,
                 np.mean(aw, axis=0),

@@ -45,7 +45,7 @@ class Limits:
     max_sigma_centre_px: float = 1.5
     max_sigma_rotation_deg: float = 0.05
     max_sigma_translation_mm: float = 1.0
-    max_sigma_imu_deg: float = 0.25
+    max_sigma_imu_deg: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -116,9 +116,10 @@ def judge(result: CalibrationResult, limits: Limits | None = None) -> Verdict:
     reasons: list[str] = []
     if _planar(result, lim):
         reasons.append(
-            "one plane only: every pose saw a single flat surface, which ties the focal "
-            "length and principal point to the wall's distance and tilt and leaves the IMU's "
-            "rotation unmeasured; aim at a wall corner, or a wall and the floor"
+            "one plane only: every pose saw a single flat surface, so the solve rests on "
+            "how the poses differ alone (no pose holds depth of its own) and the IMU's "
+            "rotation on one plane normal per pose; aim at a wall corner, or a wall and the "
+            "floor"
         )
     if n_poses < lim.min_poses:
         reasons.append(f"too few poses ({n_poses}; at least {lim.min_poses})")

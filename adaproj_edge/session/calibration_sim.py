@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, Image
 from adaproj_edge.errors import InputError
-from adaproj_edge.geometry.calibration import Calibration
+from adaproj_edge.geometry.calibration import Calibration, DepthCameraModel
 from adaproj_edge.geometry.mesh_surface import MeshSurface
 from adaproj_edge.hal.camera import CameraFrame, CameraSettings, FixedCamera
 from adaproj_edge.hal.clock import VirtualClock
@@ -270,7 +270,7 @@ class SimDepth:
         self._queue = _Queue(world, world.settings.depth_fps, 0.031, 35_000_000)
 
     @property
-    def model(self) -> Any:
+    def model(self) -> DepthCameraModel:
         return self.world.rig.depth
 
     def read(self) -> DepthFrame | None:

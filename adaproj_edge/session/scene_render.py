@@ -36,7 +36,7 @@ class CameraOptics:
     surface.
     """
 
-    white_level: float = 110.0
+    white_level: float = 90.0
     reference_m: float = 1.5
     reference_exposure_us: int = 8000
     reference_iso: int = 400

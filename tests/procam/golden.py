@@ -9,9 +9,9 @@ from typing import Any
 
 from adaproj_edge.procam.plan import PlanSettings
 from adaproj_edge.procam.procedure import ProcedureSettings, capture_poses
-from adaproj_edge.procam.replay import recorded_capture
 from adaproj_edge.procam.report import judge
 from adaproj_edge.procam.result import CalibrationResult, solve_capture
+from adaproj_edge.procam.session_devices import recorded_capture
 from adaproj_edge.session.codec import Record
 
 FIXTURE = Path(__file__).resolve().parents[1] / "fixtures" / "calibration" / "corner.mcap"
