@@ -32,24 +32,15 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from adaproj_edge.hal.board import Board  # noqa: E402
-from adaproj_edge.procam.plan import PlanSettings  # noqa: E402
-from adaproj_edge.procam.procedure import ProcedureSettings, capture_poses  # noqa: E402
+from adaproj_edge.procam.procedure import Silent  # noqa: E402
 from adaproj_edge.procam.result import solve_capture  # noqa: E402
-from adaproj_edge.procam.session_devices import recorded_capture  # noqa: E402
+from adaproj_edge.procam.session_devices import recorded_capture, run_recorded  # noqa: E402
 from adaproj_edge.session.calibration_sim import (  # noqa: E402
     CalibrationSimSettings,
     perturbed_rig,
     simulate_calibration,
 )
 from adaproj_edge.session.simulator import Scene  # noqa: E402
-
-
-class Quiet:
-    def say(self, event: str, message: str) -> None:
-        pass
-
-    def record(self, rec: object) -> None:
-        pass
 
 
 def reference() -> float:
@@ -64,12 +55,8 @@ def reference() -> float:
 def once(path: Path) -> tuple[float, float, float, float, int]:
     """(capture wall, capture CPU, solve wall, solve CPU, poses) of one replay."""
     rc = recorded_capture(path)  # read into memory: not timed
-    settings = ProcedureSettings(max_poses=rc.max_poses, plan=PlanSettings(min_poses=rc.min_poses))
-    p = rc.nominal.projector
     w0, c0 = time.perf_counter(), time.process_time()
-    run = capture_poses(
-        rc.devices, rc.camera, Quiet(), settings, (p.width, p.height), rc.nominal.R_P_I
-    )
+    run = run_recorded(rc, Silent())
     w1, c1 = time.perf_counter(), time.process_time()
     solve_capture(run, rc.nominal)
     w2, c2 = time.perf_counter(), time.process_time()

@@ -42,11 +42,10 @@ sys.path.insert(0, str(ROOT))
 from adaproj_edge.app.replay import ReplayOptions, replay_session  # noqa: E402
 from adaproj_edge.geometry.calibration import Calibration  # noqa: E402
 from adaproj_edge.hal.board import Board  # noqa: E402
-from adaproj_edge.procam.plan import PlanSettings  # noqa: E402
-from adaproj_edge.procam.procedure import ProcedureSettings, capture_poses  # noqa: E402
+from adaproj_edge.procam.procedure import Silent  # noqa: E402
 from adaproj_edge.procam.report import changes, judge  # noqa: E402
 from adaproj_edge.procam.result import CalibrationResult, solve_capture  # noqa: E402
-from adaproj_edge.procam.session_devices import recorded_capture  # noqa: E402
+from adaproj_edge.procam.session_devices import recorded_capture, run_recorded  # noqa: E402
 from adaproj_edge.session.calibration_sim import (  # noqa: E402
     CalibrationSimSettings,
     perturbed_rig,
@@ -64,14 +63,6 @@ CASES = [
 ]
 
 
-class Quiet:
-    def say(self, event: str, message: str) -> None:
-        pass
-
-    def record(self, rec: object) -> None:
-        pass
-
-
 def nominal() -> Calibration:
     return Board.load("rpi5-oakd").calibration()
 
@@ -79,11 +70,7 @@ def nominal() -> Calibration:
 def solve_session(path: Path) -> CalibrationResult:
     """`adaproj calibrate --replay`, without writing files."""
     rc = recorded_capture(path)
-    settings = ProcedureSettings(max_poses=rc.max_poses, plan=PlanSettings(min_poses=rc.min_poses))
-    p = rc.nominal.projector
-    run = capture_poses(
-        rc.devices, rc.camera, Quiet(), settings, (p.width, p.height), rc.nominal.R_P_I
-    )
+    run = run_recorded(rc, Silent())
     return solve_capture(run, rc.nominal)
 
 

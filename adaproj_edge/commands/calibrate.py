@@ -168,9 +168,7 @@ def run(args: argparse.Namespace) -> int:
         raise CalibrationError("--record records the device; it cannot go with --replay")
     if args.replay is not None:
         rc = recorded_capture(args.replay)
-        settings = ProcedureSettings(
-            max_poses=rc.max_poses, plan=PlanSettings(min_poses=rc.min_poses)
-        )
+        settings = rc.settings
         devices, camera, nominal, console = rc.devices, rc.camera, rc.nominal, Console()
     else:
         if args.max_poses < 1:

@@ -87,6 +87,16 @@ class Listener(Protocol):
     def record(self, rec: Record) -> None: ...
 
 
+class Silent:
+    """A listener that tells nobody and records nothing (tools, tests)."""
+
+    def say(self, event: str, message: str) -> None:
+        pass
+
+    def record(self, rec: Record) -> None:
+        pass
+
+
 class ShowLog(Protocol):
     """Puts a pattern on the display and says when (ns)."""
 

@@ -17,7 +17,15 @@ from adaproj_edge.hal.camera import CameraFrame, CameraSettings, ReplayCamera
 from adaproj_edge.hal.clock import VirtualClock
 from adaproj_edge.hal.depth import ReplayDepthCamera
 from adaproj_edge.hal.imu import ReplayImu
-from adaproj_edge.procam.procedure import Devices, ReplayShow
+from adaproj_edge.procam.plan import PlanSettings
+from adaproj_edge.procam.procedure import (
+    CaptureRun,
+    Devices,
+    Listener,
+    ProcedureSettings,
+    ReplayShow,
+    capture_poses,
+)
 from adaproj_edge.session import schemas
 from adaproj_edge.session.reader import read_session
 from adaproj_edge.session.records import PatternShown
@@ -33,6 +41,20 @@ class RecordedCapture:
     min_poses: int
     nominal: Calibration
     attachments: dict[str, bytes]
+
+    @property
+    def settings(self) -> ProcedureSettings:
+        """The procedure's settings as recorded (the pose counts it ran with)."""
+        return ProcedureSettings(
+            max_poses=self.max_poses, plan=PlanSettings(min_poses=self.min_poses)
+        )
+
+
+def run_recorded(rc: RecordedCapture, listener: Listener) -> CaptureRun:
+    """The procedure on a recorded session, as it ran on the device."""
+    p = rc.nominal.projector
+    size = (p.width, p.height)
+    return capture_poses(rc.devices, rc.camera, listener, rc.settings, size, rc.nominal.R_P_I)
 
 
 def _json(attachments: dict[str, bytes], name: str, path: object) -> Any:

@@ -7,11 +7,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from adaproj_edge.procam.plan import PlanSettings
-from adaproj_edge.procam.procedure import ProcedureSettings, capture_poses
 from adaproj_edge.procam.report import judge
 from adaproj_edge.procam.result import CalibrationResult, solve_capture
-from adaproj_edge.procam.session_devices import recorded_capture
+from adaproj_edge.procam.session_devices import recorded_capture, run_recorded
 from adaproj_edge.session.codec import Record
 
 FIXTURE = Path(__file__).resolve().parents[1] / "fixtures" / "calibration" / "corner.mcap"
@@ -34,12 +32,8 @@ class Transcript:
 def replay(path: Path = FIXTURE) -> tuple[CalibrationResult, list[str]]:
     """``adaproj calibrate --replay`` of ``path``, without writing: result, transcript."""
     rc = recorded_capture(path)
-    settings = ProcedureSettings(max_poses=rc.max_poses, plan=PlanSettings(min_poses=rc.min_poses))
-    p = rc.nominal.projector
     talk = Transcript()
-    run = capture_poses(
-        rc.devices, rc.camera, talk, settings, (p.width, p.height), rc.nominal.R_P_I
-    )
+    run = run_recorded(rc, talk)
     return solve_capture(run, rc.nominal), talk.lines
 
 
