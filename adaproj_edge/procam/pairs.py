@@ -134,8 +134,9 @@ def edge_samples(
 
     Where two neighbouring camera pixels (along a row or a column) decode to cells
     ``c`` and ``c + 1``, exactly one bit of their Gray codes differs; its pattern
-    minus inverse changes sign between them, and the zero crossing (linear
-    interpolation) is where the projector's edge ``x = (c + 1) * cell - 0.5`` is seen.
+    minus inverse changes sign between them, and the zero crossing (on the cubic
+    through these two pixels and one more either side) is where the projector's edge
+    ``x = (c + 1) * cell - 0.5`` is seen.
 
     Parameters
     ----------
@@ -169,11 +170,57 @@ def edge_samples(
         d0 = diff[bit, r, q]
         d1 = diff[bit, r + (axis == 0), q + (axis == 1)]
         cross = (d0 * d1 < 0) & (bit >= 0)
-        t = d0[cross] / (d0[cross] - d1[cross])
-        us.append(q[cross] + (t if axis == 1 else 0.0))
-        vs.append(r[cross] + (t if axis == 0 else 0.0))
+        bit, r, q, d0, d1 = bit[cross], r[cross], q[cross], d0[cross], d1[cross]
+        t = _zero_crossing(diff, bit, r, q, d0, d1, axis)
+        us.append(q + (t if axis == 1 else 0.0))
+        vs.append(r + (t if axis == 0 else 0.0))
         vals.append(np.maximum(c0[ok], c1[ok])[cross] * float(cell) - 0.5)
     return np.concatenate(us), np.concatenate(vs), np.concatenate(vals)
+
+
+def _zero_crossing(
+    diff: NDArray[np.float32],
+    bit: IntArray,
+    r: IntArray,
+    q: IntArray,
+    d0: FloatArray,
+    d1: FloatArray,
+    axis: int,
+) -> FloatArray:
+    """Where (0..1, from the first pixel) the differences ``d0``, ``d1`` of two
+    neighbouring pixels along ``axis`` cross zero: on the cubic through them and the
+    pixels either side (a blurred stripe edge is curved between two samples; the
+    straight line alone is biased by where the edge falls), else on the line."""
+    t = d0 / (d0 - d1)
+    dy, dx = int(axis == 0), int(axis == 1)
+    n = diff.shape[1 + (axis == 1)]
+    pos = q if axis == 1 else r
+    inner = (pos >= 1) & (pos + 2 < n)
+    if not inner.any():
+        return t
+    b, rr, qq = bit[inner], r[inner], q[inner]
+    dm = diff[b, rr - dy, qq - dx].astype(np.float64)
+    d2 = diff[b, rr + 2 * dy, qq + 2 * dx].astype(np.float64)
+    a0, a1 = d0[inner].astype(np.float64), d1[inner].astype(np.float64)
+
+    def cubic(x: FloatArray) -> FloatArray:  # Lagrange through x = -1, 0, 1, 2
+        y: FloatArray = (
+            -dm * x * (x - 1) * (x - 2) / 6
+            + a0 * (x + 1) * (x - 1) * (x - 2) / 2
+            - a1 * (x + 1) * x * (x - 2) / 2
+            + d2 * (x + 1) * x * (x - 1) / 6
+        )
+        return y
+
+    x = t[inner].astype(np.float64)
+    for _ in range(4):  # Newton steps from the straight line's crossing
+        slope = (cubic(x + 1e-3) - cubic(x - 1e-3)) / 2e-3
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = np.clip(x - cubic(x) / slope, 0.0, 1.0)
+    good = np.isfinite(x) & (np.abs(cubic(x)) < 1e-3)
+    out = t.astype(np.float64).copy()
+    out[np.flatnonzero(inner)[good]] = x[good]
+    return out
 
 
 def _patch_fit(

@@ -86,13 +86,17 @@ class LitView:
     ``uv`` (H, W, 2) float32: the projector pixel lighting each point (-10 where
     none: no surface, outside the frame, or in the projector's shadow); ``light``
     (H, W) float32: albedo x cos(incidence) x (reference / distance)^2 where lit;
-    ``albedo`` (H, W) float32 (0 where there is no surface).
+    ``albedo`` (H, W) float32 (0 where there is no surface); ``footprint_px``: the
+    median distance in projector pixels between neighbouring points (the projector
+    frame is blurred over it before it is sampled, so a point stands for its whole
+    patch of the frame: no aliasing between the two pixel grids).
     """
 
     uv: NDArray[np.float32]
     light: NDArray[np.float32]
     albedo: NDArray[np.float32]
     supersample: int
+    footprint_px: float = 0.0
 
 
 def lit_view(
@@ -140,8 +144,12 @@ def lit_view(
     pts_w = pts_p @ R_W_P.T + t_W_P
     albedo = np.where(np.isfinite(z), _albedo(pts_w, optics.albedo_texture), 0.0)
     light = np.where(seen, albedo * cos * (optics.reference_m / np.where(seen, dist, 1.0)) ** 2, 0)
+    step = np.linalg.norm(np.diff(uv, axis=1), axis=-1)[seen[:, 1:] & seen[:, :-1]]
+    footprint = float(np.median(step)) if step.size else 0.0
     uv = np.where(seen[..., None], uv, -10.0)
-    return LitView(uv.astype(np.float32), light.astype(np.float32), albedo.astype(np.float32), n)
+    return LitView(
+        uv.astype(np.float32), light.astype(np.float32), albedo.astype(np.float32), n, footprint
+    )
 
 
 def projector_light(frame: Image, gamma: float, black_level: float) -> NDArray[np.float32]:
@@ -163,6 +171,10 @@ def clean_capture(
         direct = np.zeros(view.light.shape, np.float32)
     else:
         lightmap = projector_light(frame, optics.gamma, optics.black_level)
+        if view.footprint_px > 1.0:  # a box of the footprint's width, as a Gaussian
+            lightmap = np.asarray(
+                cv2.GaussianBlur(lightmap, (0, 0), view.footprint_px / np.sqrt(12.0)), np.float32
+            )
         mx, my = view.uv[..., 0], view.uv[..., 1]
         sent = cv2.remap(lightmap, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
         direct = np.asarray(sent * view.light * np.float32(optics.white_level), np.float32)
