@@ -31,6 +31,11 @@ class ModelError(InputError):
     """A saliency model file is missing, unloadable or does not meet the model contract."""
 
 
+class CalibrationError(InputError):
+    """A calibration cannot be made from the captures; the message says what to redo
+    (projector off, saturated images, a device that moved, one plane only, ...)."""
+
+
 class WarpError(AdaprojError):
     """The warp could not be computed for the given surface and content."""
 

@@ -23,12 +23,14 @@ MODULES: tuple[str, ...] = (
     "device",
     "record",
     "simulate_session",
+    "simulate_calibration",
     "demo",
     "warp",
     "simulate",
     "surface",
     "run",
     "replay",
+    "calibrate",
 )
 
 

@@ -38,6 +38,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--no-cache", action="store_true", help="turn the per-pose warp cache off")
     p.add_argument("--no-warm-start", action="store_true", help="refine from scratch each time")
     p.add_argument("--no-score", action="store_true", help="skip the ground-truth scoring")
+    p.add_argument(
+        "--calibration",
+        default=None,
+        metavar="FILE.toml",
+        help="replay with this calibration instead of the session's (e.g. one solved by "
+        "`adaproj calibrate`)",
+    )
     p.set_defaults(run=run)
 
 
@@ -47,9 +54,13 @@ def run(args: argparse.Namespace) -> int:
 
     from adaproj_edge.app.replay import ReplayOptions, replay_session
     from adaproj_edge.app.settings import AppSettings
+    from adaproj_edge.geometry.calibration import Calibration
 
     settings = replace(AppSettings(), caching=not args.no_cache, warm_start=not args.no_warm_start)
-    options = ReplayOptions(settings, all_frames=args.all_frames, score=not args.no_score)
+    cal = Calibration.load(args.calibration) if args.calibration else None
+    options = ReplayOptions(
+        settings, all_frames=args.all_frames, score=not args.no_score, calibration=cal
+    )
     s = replay_session(args.session, args.out, options)
     c = s["counters"]
     print(

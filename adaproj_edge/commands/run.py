@@ -38,6 +38,16 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         default=Path("/var/lib/adaproj/state"),
         help="where the last good warp is kept (shown at the next boot)",
     )
+    from adaproj_edge.hal.board import DEVICE_CALIBRATION  # this command was selected
+
+    p.add_argument(
+        "--calibration",
+        type=Path,
+        default=None,
+        metavar="FILE.toml",
+        help=f"calibration file (default: {DEVICE_CALIBRATION}, written by `adaproj "
+        "calibrate`, when it exists; else the board's nominal calibration)",
+    )
     p.add_argument(
         "--record",
         type=Path,
@@ -83,13 +93,16 @@ def check(board: Board) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from adaproj_edge.hal.board import Board
+    from adaproj_edge.hal.board import Board, calibration_in_use
 
     board = Board.load(args.board)
+    board = board.with_calibration(calibration_in_use(board, args.calibration))
     if args.check:
         for line in check(board):
             print(line)
         return 0
+    log.info("calibration: %s", board.calibration_path)
+    board.calibration()  # a bad file is refused before the devices start
     check_output_dir(args.store, "content store")
     check_output_dir(args.state, "state folder")
     if args.record is not None:
