@@ -188,6 +188,8 @@ def _replay(
             pose = rec
         elif isinstance(rec, SerialTraffic):
             link.feed(rec)
+        if rt.calibration_wanted:  # the hold gesture: no devices to hand over here
+            rt.recalibrate(None, "a replay has no devices to calibrate")
         if n_records % 200 == 0:
             rss.append(round(rss_mb(), 1))
     if t0 is None:

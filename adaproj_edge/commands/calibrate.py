@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import queue
-import threading
 from pathlib import Path
 from typing import Any
 
@@ -13,10 +11,11 @@ from adaproj_edge.errors import CalibrationError
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.board import DEVICE_CALIBRATION, Board, calibration_in_use
 from adaproj_edge.hal.camera import CameraSettings, OakRig
-from adaproj_edge.hal.clock import Clock, MonotonicClock
+from adaproj_edge.hal.clock import MonotonicClock
 from adaproj_edge.hal.display import FramebufferDisplay
-from adaproj_edge.hal.imu import Imu, ImuSample
+from adaproj_edge.hal.imu import Imu
 from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
+from adaproj_edge.hal.polled_imu import PolledImu
 from adaproj_edge.procam.outputs import calibrate
 from adaproj_edge.procam.plan import PlanSettings
 from adaproj_edge.procam.procedure import Devices, LiveShow, ProcedureSettings
@@ -90,44 +89,6 @@ class Console:
     def record(self, rec: Record) -> None:
         if self.writer is not None:
             self.writer.write(rec)
-
-
-class PolledImu:
-    """The IMU read on a thread of its own (the chip keeps only its newest sample, and
-    the procedure is busy with the camera between its reads)."""
-
-    def __init__(self, imu: Lsm6dsox, rate_hz: float, clock: Clock) -> None:
-        self._imu, self._clock = imu, clock
-        self._period_ns = int(0.5e9 / rate_hz)
-        self._queue: queue.Queue[ImuSample] = queue.Queue(maxsize=100_000)
-        self._stop = threading.Event()
-        self._error: str | None = None
-        self._thread = threading.Thread(target=self._run, name="imu", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        try:
-            while not self._stop.is_set():
-                s = self._imu.read()
-                if s is None:
-                    self._clock.sleep_until(self._clock.now_ns() + self._period_ns)
-                else:
-                    self._queue.put(s)
-        except Exception as e:  # handed to the reader: the procedure reports it
-            self._error = str(e)
-
-    def read(self) -> ImuSample | None:
-        if self._error is not None:
-            raise CalibrationError(f"the IMU failed: {self._error}")
-        try:
-            return self._queue.get_nowait()
-        except queue.Empty:
-            return None
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join(timeout=1.0)
-        self._imu.close()
 
 
 def _live(
