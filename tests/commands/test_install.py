@@ -147,8 +147,11 @@ def test_run_start_up_checks(installed: Path, work: Path) -> None:
     proc = run([adaproj, *argv], work)
     err = proc.stderr.strip().splitlines()
     assert proc.returncode == 2, proc.stderr
-    assert len(err) == 1 and err[0].startswith("adaproj run: error: "), err
-    assert "check that" in err[0]  # says what to check (the framebuffer, a device)
+    # the journal's INFO lines (the calibration in use), then one error line
+    assert err[-1].startswith("adaproj run: error: "), err
+    assert all(line.startswith("INFO ") for line in err[:-1]), err
+    assert any("calibration: " in line for line in err[:-1]), err
+    assert "check that" in err[-1]  # says what to check (the framebuffer, a device)
 
 
 @pytest.mark.slow
