@@ -14,6 +14,10 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
 
+DEVICE_CALIBRATION = Path("/var/lib/adaproj/calibration.toml")
+"""Where ``adaproj calibrate`` (and the hold gesture) writes a unit's own calibration,
+which ``adaproj run`` uses when it exists (not shipped: made on the device)."""
+
 
 def boards_dir() -> Path:
     """Board files (``hw/boards/*.toml``), found by name by ``--board NAME``."""

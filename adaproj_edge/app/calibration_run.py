@@ -18,7 +18,7 @@ from typing import Protocol
 
 from adaproj_edge.errors import AdaprojError
 from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.hal.board import DEVICE_CALIBRATION, Board
+from adaproj_edge.hal.board import Board
 from adaproj_edge.hal.camera import OakRig
 from adaproj_edge.hal.clock import Clock
 from adaproj_edge.hal.display import Display
@@ -27,6 +27,7 @@ from adaproj_edge.hal.polled_imu import PolledImu
 from adaproj_edge.procam.outputs import calibrate
 from adaproj_edge.procam.procedure import Devices, LiveShow
 from adaproj_edge.render.sheet import text_page
+from adaproj_edge.resources import DEVICE_CALIBRATION
 from adaproj_edge.session.codec import Record
 
 log = logging.getLogger(__name__)

@@ -5,25 +5,17 @@ from __future__ import annotations
 import argparse
 import logging
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from adaproj_edge.errors import CalibrationError
-from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.hal.board import DEVICE_CALIBRATION, Board, calibration_in_use
-from adaproj_edge.hal.camera import CameraSettings, OakRig
-from adaproj_edge.hal.clock import MonotonicClock
-from adaproj_edge.hal.display import FramebufferDisplay
-from adaproj_edge.hal.imu import Imu
-from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
-from adaproj_edge.hal.polled_imu import PolledImu
-from adaproj_edge.procam.outputs import calibrate
-from adaproj_edge.procam.plan import PlanSettings
-from adaproj_edge.procam.procedure import Devices, LiveShow, ProcedureSettings
-from adaproj_edge.procam.session_devices import recorded_capture
-from adaproj_edge.session import schemas
-from adaproj_edge.session.calibration_sim import camera_attachment, capture_settings
-from adaproj_edge.session.codec import Record
-from adaproj_edge.session.writer import SessionWriter
+from adaproj_edge.resources import DEVICE_CALIBRATION
+
+if TYPE_CHECKING:  # the rest is imported when the command runs (--help stays light)
+    from adaproj_edge.geometry.calibration import Calibration
+    from adaproj_edge.hal.camera import CameraSettings
+    from adaproj_edge.procam.procedure import Devices, ProcedureSettings
+    from adaproj_edge.session.codec import Record
+    from adaproj_edge.session.writer import SessionWriter
 
 log = logging.getLogger(__name__)
 
@@ -96,6 +88,19 @@ def _live(
 ) -> tuple[Devices, CameraSettings, Calibration, Console, list[Any]]:
     """The board's devices, its camera settings, the starting calibration, the
     console (recording when asked), and what to close at the end."""
+    from adaproj_edge.geometry.calibration import Calibration
+    from adaproj_edge.hal.board import Board, calibration_in_use
+    from adaproj_edge.hal.camera import OakRig
+    from adaproj_edge.hal.clock import MonotonicClock
+    from adaproj_edge.hal.display import FramebufferDisplay
+    from adaproj_edge.hal.imu import Imu
+    from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
+    from adaproj_edge.hal.polled_imu import PolledImu
+    from adaproj_edge.procam.procedure import Devices, LiveShow
+    from adaproj_edge.session import schemas
+    from adaproj_edge.session.calibration_sim import camera_attachment, capture_settings
+    from adaproj_edge.session.writer import SessionWriter
+
     board = Board.load(args.board)
     nominal = Calibration.load(calibration_in_use(board, args.calibration))
     clock = MonotonicClock()
@@ -124,6 +129,11 @@ def _live(
 
 
 def run(args: argparse.Namespace) -> int:
+    from adaproj_edge.procam.outputs import calibrate
+    from adaproj_edge.procam.plan import PlanSettings
+    from adaproj_edge.procam.procedure import ProcedureSettings
+    from adaproj_edge.procam.session_devices import recorded_capture
+
     closing: list[Any] = []
     if args.replay is not None and args.record is not None:
         raise CalibrationError("--record records the device; it cannot go with --replay")

@@ -11,6 +11,7 @@ from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from adaproj_edge.commands._outputs import check_output_dir, check_output_file
+from adaproj_edge.resources import DEVICE_CALIBRATION
 
 if TYPE_CHECKING:
     from adaproj_edge.hal.board import Board
@@ -38,8 +39,6 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         default=Path("/var/lib/adaproj/state"),
         help="where the last good warp is kept (shown at the next boot)",
     )
-    from adaproj_edge.hal.board import DEVICE_CALIBRATION  # this command was selected
-
     p.add_argument(
         "--calibration",
         type=Path,

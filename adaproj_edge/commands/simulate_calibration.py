@@ -9,22 +9,16 @@ from pathlib import Path
 from typing import Any
 
 from adaproj_edge.errors import InputError
-from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.hal.board import Board
-from adaproj_edge.session.calibration_sim import (
-    CalibrationSimSettings,
-    SimFaults,
-    simulate_calibration,
-)
-from adaproj_edge.session.simulator import Scene
 
 log = logging.getLogger(__name__)
 
-FAULTS = {
-    "projector-off": SimFaults(projector_off=True),
-    "shake": SimFaults(shake_pose=1),
-    "saturated": SimFaults(exposure_scale=6.0),
+FAULTS: dict[str, dict[str, Any]] = {
+    "projector-off": {"projector_off": True},
+    "shake": {"shake_pose": 1},
+    "saturated": {"exposure_scale": 6.0},
 }
+"""Bad input to simulate: ``SimFaults`` fields by name (kept light: this module is
+imported for ``--help``)."""
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -64,6 +58,15 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from adaproj_edge.geometry.calibration import Calibration
+    from adaproj_edge.hal.board import Board
+    from adaproj_edge.session.calibration_sim import (
+        CalibrationSimSettings,
+        SimFaults,
+        simulate_calibration,
+    )
+    from adaproj_edge.session.simulator import Scene
+
     board = Board.load(args.board)
     nominal = board.calibration()
     truth = Calibration.load(args.rig)
@@ -72,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         poses=args.poses,
         seed=args.seed,
         camera=replace(board.camera, width=w, height=h),
-        faults=FAULTS[args.fault] if args.fault else SimFaults(),
+        faults=SimFaults(**FAULTS[args.fault]) if args.fault else SimFaults(),
     )
 
     def tell(event: str, message: str) -> None:

@@ -50,9 +50,8 @@ from adaproj_edge.hal.button import check_key_code
 from adaproj_edge.hal.camera import CameraSettings
 from adaproj_edge.hal.depth import StereoSettings
 from adaproj_edge.hal.lsm6dsox import ADDRESSES, Lsm6dsoxConfig
-from adaproj_edge.resources import boards_dir
+from adaproj_edge.resources import DEVICE_CALIBRATION, boards_dir
 
-DEVICE_CALIBRATION = Path("/var/lib/adaproj/calibration.toml")
 """Where ``adaproj calibrate`` writes a unit's own calibration on the device, and
 where ``adaproj run`` looks for it first."""
 
