@@ -83,7 +83,7 @@ class Board:
         return Calibration.load(self.calibration_path)
 
     def with_calibration(self, path: str | Path) -> Board:
-        """This board running with the calibration file ``path``."""
+        """The same board running with the calibration file ``path``."""
         return replace(self, calibration_path=Path(path))
 
     @classmethod
