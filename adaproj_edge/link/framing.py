@@ -71,6 +71,7 @@ class DecoderStats:
     dropped: dict[str, int] = field(default_factory=dict)
 
     def drop(self, reason: str) -> None:
+        """Count one frame dropped for ``reason``."""
         self.dropped[reason] = self.dropped.get(reason, 0) + 1
 
 
