@@ -76,6 +76,7 @@ def _create_temp(directory: Path, name: str) -> tuple[int, Path]:
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically (:func:`atomic_write`)."""
     atomic_write(path, lambda f: f.write(data))
 
 

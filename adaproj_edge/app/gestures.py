@@ -63,8 +63,8 @@ class Gestures:
         return None
 
     def tick(self, now_ns: int) -> Gesture | None:
-        """ "hold" once the button has been down ``hold_s``; "press" once a single press
-        has waited out the double-press window."""
+        """Return "hold" once the button has been down ``hold_s``; "press" once a single
+        press has waited out the double-press window."""
         if (
             self._press_ns is not None
             and not self._held

@@ -33,6 +33,9 @@ class FrameSampler:
         self.side_views: list[tuple[list[Image], list[str]]] = []
 
     def __call__(self, t_ns: int, frame: Image, info: dict[str, Any]) -> None:
+        """Take the frame shown at ``t_ns``: a checksum of every frame (mean BGR), PNGs of an
+        evenly spaced sample (its spacing doubles whenever it grows past twice
+        ``SAMPLE_FRAMES``) and, when asked, every frame written to ``out/frames``."""
         self.count += 1
         faults = info["faults"]
         caption = f"{(t_ns - self.t0) / 1e9:.2f}s {info['kind']}"
@@ -57,6 +60,8 @@ class FrameSampler:
             self.sample = [x for x in self.sample if (x[0] - 1) % self.stride == 0]
 
     def picked(self) -> list[tuple[int, int, bytes, Image, str]]:
+        """At most ``SAMPLE_FRAMES`` of the sample, evenly spaced: (count, t_ns, PNG, quarter-size
+        frame, caption) each."""
         n = len(self.sample)
         if n <= SAMPLE_FRAMES:
             return self.sample

@@ -101,8 +101,8 @@ def load_maps(
 
 
 def grid_arg(text: str) -> Grid:
-    """argparse type for ``--grid 20x20``: columns x rows of cells, enough of them for
-    the warp's mesh (checked here, before any work)."""
+    """Parse ``--grid 20x20`` (the argparse type): columns x rows of cells, enough of
+    them for the warp's mesh (checked here, before any work)."""
     from adaproj_edge.warp.mesh import MIN_TRIANGLES
     from adaproj_edge.warp.warpmap import Grid
 
@@ -119,7 +119,7 @@ def grid_arg(text: str) -> Grid:
 
 
 def vector_arg(text: str) -> tuple[float, float, float]:
-    """argparse type for ``--viewer X,Y,Z`` (metres, frame P)."""
+    """Parse ``--viewer X,Y,Z`` (metres, frame P; the argparse type)."""
     try:
         x, y, z = (float(t) for t in text.split(","))
     except ValueError:

@@ -74,11 +74,13 @@ class Console:
         self.writer = writer
 
     def say(self, event: str, message: str) -> None:
+        """Print ``message``; the session is flushed after each capture and at the end."""
         print(message, flush=True)
         if self.writer is not None and event in ("captured", "done"):
             self.writer.flush()
 
     def record(self, rec: Record) -> None:
+        """Write ``rec`` into the session, when recording."""
         if self.writer is not None:
             self.writer.write(rec)
 

@@ -62,6 +62,7 @@ def add_settings(p: argparse.ArgumentParser) -> None:
 
 
 def settings_of(args: argparse.Namespace) -> dict[str, Any] | None:
+    """The ``--mode`` and ``--threshold`` given, as the device's settings map; None if neither."""
     s = {k: getattr(args, k) for k in ("mode", "threshold") if getattr(args, k) is not None}
     return s or None
 
@@ -117,6 +118,8 @@ class ProgressBar:
         self.open = False
 
     def __call__(self, done: int, total: int) -> None:
+        """Draw the bar at ``done`` of ``total`` bytes (the rate from the first call on); the
+        line is finished once all is done."""
         if self.first is None:
             self.first = done
         frac = done / total if total else 1.0

@@ -22,10 +22,14 @@ class AnalyticSurface(Protocol):
     """A surface that can be ray-cast exactly."""
 
     @property
-    def name(self) -> str: ...
+    def name(self) -> str:
+        """Name of the surface (a key of ``SURFACES``)."""
+        ...
 
     @property
-    def developable(self) -> bool: ...
+    def developable(self) -> bool:
+        """Whether the surface unrolls onto a plane without stretching."""
+        ...
 
     def intersect(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
         """Ray parameter t (...,) of the first hit with t > 0, NaN where none."""
@@ -49,6 +53,7 @@ class Plane:
     developable: bool = True
 
     def intersect(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
+        """Ray parameter t (...,) of the hit with t > 0, NaN where none or parallel."""
         n = np.asarray(self.normal)
         den = dirs @ n
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -72,6 +77,9 @@ class Corner:
     developable: bool = True
 
     def intersect(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
+        """Ray parameter t (...,) of the nearer hit on either wall (each on its side of the
+        crease), NaN where none.
+        """
         # Wall i contains the crease and the horizontal direction (s*sin a, 0, -cos a)*sgn.
         a = self.half_angle
         hits = []
@@ -101,6 +109,9 @@ class Cylinder:
     developable: bool = True
 
     def intersect(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
+        """Ray parameter t (...,) of the hit with t > 0, the farther one when concave (seen
+        from inside), NaN where none.
+        """
         ox = origins[..., 0] - self.cx
         oz = origins[..., 2] - self.cz
         dx, dz = dirs[..., 0], dirs[..., 2]
@@ -121,6 +132,9 @@ class Sphere:
     developable: bool = False
 
     def intersect(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
+        """Ray parameter t (...,) of the hit with t > 0, the farther one when concave (seen
+        from inside), NaN where none.
+        """
         o = origins - np.asarray(self.c)
         a = np.sum(dirs * dirs, axis=-1)
         b = 2 * np.sum(o * dirs, axis=-1)
@@ -138,6 +152,7 @@ class Bowl:
     developable: bool = False
 
     def intersect(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
+        """Ray parameter t (...,) of the first hit with t > 0, NaN where none."""
         ox, oy, oz = origins[..., 0], origins[..., 1], origins[..., 2]
         dx, dy, dz = dirs[..., 0], dirs[..., 1], dirs[..., 2]
         # k((ox+t dx)^2 + (oy+t dy)^2) + (oz + t dz) - z0 = 0
@@ -194,6 +209,7 @@ NON_DEVELOPABLE = tuple(n for n, s in SURFACES.items() if not s.developable)
 
 
 def get_surface(name: str) -> AnalyticSurface:
+    """The built-in surface called ``name``; an :class:`InputError` listing them if none is."""
     try:
         return SURFACES[name]
     except KeyError:

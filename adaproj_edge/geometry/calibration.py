@@ -85,6 +85,7 @@ class DepthCameraModel:
 
     @property
     def focal(self) -> float:
+        """Focal length fx in pixels."""
         return float(self.K[0, 0])
 
     def intrinsics_at(self, width: int, height: int) -> FloatArray:
@@ -154,6 +155,9 @@ class Calibration:
 
     # ------------------------------------------------------------------ formats
     def to_dict(self) -> dict[str, Any]:
+        """The calibration as the JSON object of session attachments (``distortion`` only when
+        not zero, ``quality`` only when set).
+        """
         p, d = self.projector, self.depth
         projector: dict[str, Any] = {"width": p.width, "height": p.height, "K": p.K.tolist()}
         if np.any(self.distortion):
@@ -184,6 +188,7 @@ class Calibration:
         return "\n".join(lines) + "\n"
 
     def to_json(self) -> str:
+        """The calibration as JSON text (:meth:`to_dict`)."""
         return json.dumps(self.to_dict(), indent=1)
 
     @classmethod
@@ -213,6 +218,9 @@ class Calibration:
 
     @classmethod
     def from_json(cls, text: str | bytes, what: str = "calibration") -> Calibration:
+        """Parse JSON text into a calibration; every problem is an :class:`InputError` naming
+        ``what``.
+        """
         try:
             data = json.loads(text)
         except (ValueError, UnicodeDecodeError) as e:

@@ -64,6 +64,7 @@ class Surface:
     # ------------------------------------------------------------------ queries
     @property
     def shape(self) -> tuple[int, int]:
+        """Lattice size ``(h, w)``."""
         return int(self.points.shape[0]), int(self.points.shape[1])
 
     @property
@@ -73,6 +74,7 @@ class Surface:
 
     @property
     def valid_fraction(self) -> float:
+        """Fraction of nodes whose ray meets the surface."""
         return float(np.mean(self.valid))
 
     def lattice_scale(self) -> tuple[float, float]:
@@ -122,7 +124,7 @@ class Surface:
         return self.projector.rays(uv) * self.depth_at(uv)[..., None]
 
     def dense(self) -> Surface:
-        """This surface resampled at every projector pixel."""
+        """The same surface resampled at every projector pixel."""
         p = self.projector
         if self.shape == (p.height, p.width):
             return self

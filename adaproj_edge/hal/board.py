@@ -58,6 +58,8 @@ where ``adaproj run`` looks for it first."""
 
 @dataclass(frozen=True)
 class ImuSettings:
+    """The board's IMU: chip name, I2C bus number, address and chip configuration."""
+
     chip: str = "lsm6dsox"
     bus: int = 1
     address: int = ADDRESSES[0]
@@ -79,10 +81,11 @@ class Board:
     camera: CameraSettings = field(default_factory=CameraSettings)
 
     def calibration(self) -> Calibration:
+        """The calibration loaded from :attr:`calibration_path`."""
         return Calibration.load(self.calibration_path)
 
     def with_calibration(self, path: str | Path) -> Board:
-        """This board running with the calibration file ``path``."""
+        """The same board running with the calibration file ``path``."""
         return replace(self, calibration_path=Path(path))
 
     @classmethod

@@ -68,9 +68,11 @@ class InputEventParser:
 
     @property
     def record_size(self) -> int:
+        """Bytes per ``struct input_event``."""
         return self._struct.size
 
     def feed(self, data: bytes) -> list[InputEvent]:
+        """The complete records in what has arrived so far, ``data`` appended."""
         self._buf += data
         n = len(self._buf) // self._struct.size
         out = []
@@ -102,7 +104,9 @@ class Button(Protocol):
         """The next press or release, or None if none came within ``timeout_s``."""
         ...
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Release the button."""
+        ...
 
 
 class EvdevButton:
@@ -124,6 +128,8 @@ class EvdevButton:
             pass  # not an evdev node (a pipe or file in tests): timestamps as given
 
     def read(self, timeout_s: float = 0.0) -> ButtonEvent | None:
+        """The next press or release, or None if none came within ``timeout_s`` (or at end
+        of file)."""
         deadline = time.monotonic() + timeout_s
         while not self._queue:
             left = max(0.0, deadline - time.monotonic())
@@ -144,6 +150,7 @@ class EvdevButton:
         return self._queue.pop(0)
 
     def close(self) -> None:
+        """Close the evdev node."""
         os.close(self._fd)
 
 
@@ -157,9 +164,11 @@ class ReplayButton:
         self._stream = ReplayStream(events, clock)
 
     def read(self, timeout_s: float = 0.0) -> ButtonEvent | None:
+        """The next recorded press or release (``timeout_s`` is ignored), or None at the end."""
         return self._stream.next()
 
     def close(self) -> None:
+        """Nothing to release."""
         pass
 
 

@@ -86,10 +86,12 @@ class CameraSettings:
 
     @property
     def display_latency_ns(self) -> int:
+        """:attr:`display_latency_ms` in nanoseconds."""
         return round(self.display_latency_ms * 1e6)
 
     @property
     def frame_ns(self) -> int:
+        """Frame period in nanoseconds."""
         return round(1e9 / self.fps)
 
 
@@ -135,7 +137,9 @@ class Camera(Protocol):
         """The next frame (waits for it), or None when the recording ended."""
         ...
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Release the camera."""
+        ...
 
 
 def camera_control(settings: CameraSettings, lens_position: float | None = None) -> Any:
@@ -193,13 +197,16 @@ class FixedCamera:
 
     @property
     def intrinsics(self) -> FloatArray:
+        """(3, 3) at the frames' size."""
         return self._K
 
     @property
     def size(self) -> tuple[int, int]:
+        """(width, height) of the frames."""
         return self._size
 
     def close(self) -> None:
+        """Nothing to release."""
         pass
 
 
@@ -255,6 +262,7 @@ class OakRig:
         self.camera = _OakCamera(camera_queue, K, (settings.width, settings.height), clock)
 
     def close(self) -> None:
+        """Stop the pipeline (both the camera and depth)."""
         self._pipeline.stop()
 
 
@@ -272,4 +280,5 @@ class ReplayCamera(FixedCamera):
         self._stream = ReplayStream(frames, clock)
 
     def read(self) -> CameraFrame | None:
+        """The next recorded frame, or None at the end of the recording."""
         return self._stream.next()

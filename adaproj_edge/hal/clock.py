@@ -13,7 +13,9 @@ from typing import Protocol
 class Clock(Protocol):
     """A monotonic time source in integer nanoseconds."""
 
-    def now_ns(self) -> int: ...
+    def now_ns(self) -> int:
+        """The current time in ns."""
+        ...
 
     def sleep_until(self, t_ns: int) -> None:
         """Return once :meth:`now_ns` has reached ``t_ns``."""
@@ -24,9 +26,11 @@ class MonotonicClock:
     """The real clock: ``time.monotonic_ns`` (CLOCK_MONOTONIC, as input events use)."""
 
     def now_ns(self) -> int:
+        """The current ``CLOCK_MONOTONIC`` time in ns."""
         return time.monotonic_ns()
 
     def sleep_until(self, t_ns: int) -> None:
+        """Sleep until ``time.monotonic_ns()`` reaches ``t_ns``."""
         delay = t_ns - time.monotonic_ns()
         if delay > 0:
             time.sleep(delay / 1e9)
@@ -39,6 +43,7 @@ class VirtualClock:
         self._t = int(start_ns)
 
     def now_ns(self) -> int:
+        """The time the clock was last moved to (``start_ns`` until then), in ns."""
         return self._t
 
     def advance_to(self, t_ns: int) -> None:
@@ -46,4 +51,5 @@ class VirtualClock:
         self._t = max(self._t, int(t_ns))
 
     def sleep_until(self, t_ns: int) -> None:
+        """Move to ``t_ns`` at once (no-op when it lies in the past)."""
         self.advance_to(t_ns)

@@ -65,13 +65,17 @@ class DepthCamera(Protocol):
     """A depth camera with a known model."""
 
     @property
-    def model(self) -> DepthCameraModel: ...
+    def model(self) -> DepthCameraModel:
+        """The depth camera model of the frames (intrinsics, size, baseline)."""
+        ...
 
     def read(self) -> DepthFrame | None:
         """The next frame, or None when none came (or the recording ended)."""
         ...
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Release the camera."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -217,9 +221,11 @@ class OakDepthCamera:
 
     @property
     def model(self) -> DepthCameraModel:
+        """The depth camera model read from the device's calibration."""
         return self._model
 
     def read(self) -> DepthFrame | None:
+        """The next depth frame from the device queue (waits for it), stamped on arrival."""
         try:
             img = self._queue.get()
         except RuntimeError as e:
@@ -227,6 +233,7 @@ class OakDepthCamera:
         return None if img is None else frame_from_img(img, self._clock.now_ns())
 
     def close(self) -> None:
+        """Stop the pipeline if this camera started it."""
         if self._owner:
             self._pipeline.stop()
 
@@ -242,10 +249,13 @@ class ReplayDepthCamera:
 
     @property
     def model(self) -> DepthCameraModel:
+        """The recorded depth camera model."""
         return self._model
 
     def read(self) -> DepthFrame | None:
+        """The next recorded frame, or None at the end of the recording."""
         return self._stream.next()
 
     def close(self) -> None:
+        """Nothing to release."""
         pass

@@ -35,7 +35,9 @@ class Display(Protocol):
         """Show a (height, width, 3) BGR uint8 frame."""
         ...
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Release the display."""
+        ...
 
 
 class MemoryDisplay:
@@ -48,9 +50,11 @@ class MemoryDisplay:
 
     @property
     def size(self) -> tuple[int, int]:
+        """(width, height) in pixels."""
         return self._size
 
     def show(self, frame: Frame) -> None:
+        """Keep a copy of the (height, width, 3) BGR uint8 frame in :attr:`last`."""
         _check_frame(frame, self._size)
         if self.last is not None and self.last.shape == frame.shape:
             np.copyto(self.last, frame)  # one buffer: no fresh pages for every frame
@@ -59,6 +63,7 @@ class MemoryDisplay:
         self.count += 1
 
     def close(self) -> None:
+        """Nothing to release."""
         pass
 
 
@@ -133,9 +138,11 @@ class FramebufferDisplay:
 
     @property
     def size(self) -> tuple[int, int]:
+        """(width, height) in pixels, from ``virtual_size``."""
         return self._size
 
     def show(self, frame: Frame) -> None:
+        """Write a (height, width, 3) BGR uint8 frame into the mapped framebuffer."""
         _check_frame(frame, self._size)
         px = to_pixels(frame, self.bits_per_pixel)
         row = px.shape[1]
@@ -144,5 +151,6 @@ class FramebufferDisplay:
         del view
 
     def close(self) -> None:
+        """Unmap and close the framebuffer."""
         self._map.close()
         os.close(self._fd)

@@ -37,7 +37,9 @@ class Imu(Protocol):
         """The newest sample, or None when none is ready (or the recording ended)."""
         ...
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Release the IMU."""
+        ...
 
 
 class ReplayImu:
@@ -47,7 +49,9 @@ class ReplayImu:
         self._stream = ReplayStream(samples, clock)
 
     def read(self) -> ImuSample | None:
+        """The next recorded sample, or None at the end of the recording."""
         return self._stream.next()
 
     def close(self) -> None:
+        """Nothing to release."""
         pass

@@ -81,11 +81,17 @@ _CHECK = "the IMU wiring (SDA, SCL, 3V3, GND) and its I2C address (0x6A with SA0
 class SMBusLike(Protocol):
     """The part of ``smbus2.SMBus`` the driver uses."""
 
-    def read_byte_data(self, i2c_addr: int, register: int) -> int: ...
+    def read_byte_data(self, i2c_addr: int, register: int) -> int:
+        """The byte in ``register`` of the chip at ``i2c_addr``."""
+        ...
 
-    def write_byte_data(self, i2c_addr: int, register: int, value: int) -> None: ...
+    def write_byte_data(self, i2c_addr: int, register: int, value: int) -> None:
+        """Write ``value`` to ``register``."""
+        ...
 
-    def read_i2c_block_data(self, i2c_addr: int, register: int, length: int) -> list[int]: ...
+    def read_i2c_block_data(self, i2c_addr: int, register: int, length: int) -> list[int]:
+        """``length`` registers from ``register`` on."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -110,10 +116,12 @@ class Lsm6dsoxConfig:
 
     @property
     def ctrl1_xl(self) -> int:
+        """CTRL1_XL value: accelerometer data rate and full scale."""
         return (ODR_CODES[self.rate_hz] << 4) | (ACCEL_RANGES[self.accel_range_g][0] << 2)
 
     @property
     def ctrl2_g(self) -> int:
+        """CTRL2_G value: gyroscope data rate and full scale."""
         return (ODR_CODES[self.rate_hz] << 4) | (GYRO_RANGES[self.gyro_range_dps][0] << 1)
 
     @property
@@ -212,6 +220,7 @@ class Lsm6dsox:
         return decode_burst(bytes(raw), self.config, t, t)
 
     def close(self) -> None:
+        """Close the bus if it can be closed."""
         close = getattr(self.bus, "close", None)
         if close is not None:
             close()

@@ -9,8 +9,12 @@ from adaproj_edge.hal.clock import VirtualClock
 
 
 class Received(Protocol):
+    """A record that knows when it was received."""
+
     @property
-    def receive_ns(self) -> int: ...
+    def receive_ns(self) -> int:
+        """When the record was received (ns, the receiver's monotonic clock)."""
+        ...
 
 
 R = TypeVar("R", bound=Received)

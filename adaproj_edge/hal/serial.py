@@ -36,11 +36,17 @@ class SerialPort(Protocol):
     Neither call raises for an absent peer (an unplugged cable): a read just times out.
     """
 
-    def read(self, size: int, timeout: float) -> bytes: ...
+    def read(self, size: int, timeout: float) -> bytes:
+        """At most ``size`` bytes as soon as one has arrived; ``b""`` after ``timeout`` seconds."""
+        ...
 
-    def write(self, data: bytes) -> None: ...
+    def write(self, data: bytes) -> None:
+        """Send all of ``data``."""
+        ...
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Release the port."""
+        ...
 
 
 class PySerialPort:
@@ -69,6 +75,8 @@ class PySerialPort:
             raise DeviceError(f"cannot open serial port {path}: {e}; check {_CHECK}") from None
 
     def read(self, size: int, timeout: float) -> bytes:
+        """At most ``size`` bytes: the first one waited for up to ``timeout`` seconds, then
+        whatever else is already buffered; ``b""`` on timeout."""
         import serial
 
         try:
@@ -83,6 +91,7 @@ class PySerialPort:
         return first + rest
 
     def write(self, data: bytes) -> None:
+        """Write ``data`` and wait until it has been sent."""
         import serial
 
         try:
@@ -92,6 +101,7 @@ class PySerialPort:
             raise DeviceError(f"writing {self.path} failed: {e}; check {_CHECK}") from None
 
     def close(self) -> None:
+        """Close the serial device."""
         self._ser.close()
 
 
@@ -107,6 +117,8 @@ class FdPort:
         self._own = own
 
     def read(self, size: int, timeout: float) -> bytes:
+        """At most ``size`` bytes once the descriptor is readable within ``timeout`` seconds;
+        ``b""`` on timeout or ``EIO``."""
         try:
             ready, _, _ = select.select([self.fd], [], [], max(timeout, 0.0))
         except (OSError, ValueError) as e:
@@ -121,6 +133,7 @@ class FdPort:
             raise device_error(e, f"serial fd {self.fd}", "the pty pair") from None
 
     def write(self, data: bytes) -> None:
+        """Write all of ``data``; a :class:`DeviceError` when the peer reads nothing for 5 s."""
         view = memoryview(data)
         while view:
             _, ready, _ = select.select([], [self.fd], [], 5.0)
@@ -135,6 +148,7 @@ class FdPort:
             view = view[n:]
 
     def close(self) -> None:
+        """Close the descriptor if the port owns it."""
         if self._own:
             os.close(self.fd)
 
@@ -154,6 +168,7 @@ class PtyPair:
 
     @classmethod
     def open(cls) -> PtyPair:
+        """A new pty pair, its slave side in raw mode."""
         master, slave = os.openpty()
         tty.setraw(slave, termios.TCSANOW)
         return cls(master, slave, os.ttyname(slave))
@@ -163,6 +178,7 @@ class PtyPair:
         return FdPort(self.master)
 
     def close(self) -> None:
+        """Close both descriptors (errors ignored)."""
         for fd in (self.master, self.slave):
             try:
                 os.close(fd)

@@ -59,6 +59,8 @@ def check_head(head: bytes, what: str, limits: Limits) -> None:
 
 
 def check_dimensions(size: tuple[int, int], what: str, limits: Limits) -> None:
+    """Refuse an image of ``size`` (width, height) with too many pixels or a side out of
+    2..``max_side``; ``what`` names it in the :class:`ImageError`."""
     w, h = size
     if w * h > limits.max_pixels:
         raise ImageError(

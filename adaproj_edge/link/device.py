@@ -57,6 +57,7 @@ class Settings:
         return cls(str(mode), float(threshold))
 
     def to_dict(self) -> dict[str, Any]:
+        """The settings as a plain map (``mode``, ``threshold``)."""
         return asdict(self)
 
 
@@ -81,11 +82,17 @@ class DeviceRuntime(Protocol):
     :func:`~adaproj_edge.link.server.serve`), one at a time.
     """
 
-    def status(self) -> dict[str, Any]: ...
+    def status(self) -> dict[str, Any]:
+        """A small map of plain values: ``state``, ``coverage``, ``warp``, ``errors`` at least."""
+        ...
 
-    def activate(self, content: Content) -> None: ...
+    def activate(self, content: Content) -> None:
+        """Show ``content``; an :class:`~adaproj_edge.errors.AdaprojError` refuses it."""
+        ...
 
-    def frame_png(self) -> bytes: ...
+    def frame_png(self) -> bytes:
+        """The frame the projector shows now, as PNG."""
+        ...
 
 
 class StandaloneDevice:
@@ -104,6 +111,8 @@ class StandaloneDevice:
         self._errors: list[str] = []
 
     def status(self) -> dict[str, Any]:
+        """State, content names and settings, frame size and the last five errors (no
+        coverage and no warp: there is none)."""
         c = self._content
         return {
             "state": "showing" if c is not None else "idle",
@@ -129,6 +138,7 @@ class StandaloneDevice:
         log.info("showing %s", content.image.name)
 
     def frame_png(self) -> bytes:
+        """The letterboxed frame shown now, as PNG."""
         ok, enc = cv2.imencode(".png", self._frame)
         if not ok:
             raise ImageError("cannot encode the current frame as PNG")

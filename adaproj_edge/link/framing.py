@@ -1,9 +1,9 @@
-"""SMP serial framing: base64 lines with a length and a CRC16, in both directions.
+r"""SMP serial framing: base64 lines with a length and a CRC16, in both directions.
 
 A frame on the wire is ``[uint16 length][message][uint16 CRC16]`` (big-endian; the
 length counts the message and the CRC; the CRC is CRC-16/XMODEM over the message),
 base64-encoded and cut into lines. The first line starts with ``06 09``, every
-further line with ``04 14``; each line ends with ``\\n`` and carries a whole number
+further line with ``04 14``; each line ends with ``\n`` and carries a whole number
 of base64 quads. This is Zephyr's "SMP over console", what ``smpclient``'s
 ``SMPSerialTransport`` speaks.
 
@@ -71,11 +71,12 @@ class DecoderStats:
     dropped: dict[str, int] = field(default_factory=dict)
 
     def drop(self, reason: str) -> None:
+        """Count one frame dropped for ``reason``."""
         self.dropped[reason] = self.dropped.get(reason, 0) + 1
 
 
 class FrameDecoder:
-    """Turns a byte stream into SMP messages (header + body, CRC checked).
+    r"""Turns a byte stream into SMP messages (header + body, CRC checked).
 
     Parameters
     ----------
@@ -87,13 +88,13 @@ class FrameDecoder:
     Examples
     --------
     >>> d = FrameDecoder(1024)
-    >>> list(d.feed(encode_frame(b"\\x00" * 8)))
-    [b'\\x00\\x00\\x00\\x00\\x00\\x00\\x00\\x00']
+    >>> list(d.feed(encode_frame(b"\x00" * 8)))
+    [b'\x00\x00\x00\x00\x00\x00\x00\x00']
 
     A partial frame left on the line does not cost the next frame anything:
 
-    >>> list(d.feed(START + b"AAAAB" + encode_frame(b"\\x01" * 8)))
-    [b'\\x01\\x01\\x01\\x01\\x01\\x01\\x01\\x01']
+    >>> list(d.feed(START + b"AAAAB" + encode_frame(b"\x01" * 8)))
+    [b'\x01\x01\x01\x01\x01\x01\x01\x01']
     >>> d.stats.dropped
     {'line cut short': 1}
     """

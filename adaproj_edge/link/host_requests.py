@@ -25,6 +25,8 @@ class AdaprojErrorV1(smperror.ErrorV1):
 
 
 class AdaprojErrorV2(smperror.ErrorV2[MGMT_ERR]):
+    """A management error from the adaproj group, SMP version 2 (``err``: group and ``rc``)."""
+
     _GROUP_ID = ADAPROJ_GROUP
 
 
@@ -34,6 +36,8 @@ class _Group:
 
 
 class ListResponse(smpmsg.ReadResponse):
+    """The LIST reply: items, pending uploads, the active record, bytes used and the quota."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.LIST
 
@@ -45,12 +49,16 @@ class ListResponse(smpmsg.ReadResponse):
 
 
 class ListRead(smpmsg.ReadRequest, _Group):
+    """LIST: what the device's store holds."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.LIST
     _Response = ListResponse
 
 
 class ActivateResponse(smpmsg.WriteResponse):
+    """The ACTIVATE reply: the record now active."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.ACTIVATE
 
@@ -58,6 +66,8 @@ class ActivateResponse(smpmsg.WriteResponse):
 
 
 class ActivateWrite(smpmsg.WriteRequest, _Group):
+    """ACTIVATE: show ``image`` (with optional ``mask`` and ``settings``)."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.ACTIVATE
     _Response = ActivateResponse
@@ -68,11 +78,15 @@ class ActivateWrite(smpmsg.WriteRequest, _Group):
 
 
 class DeleteResponse(smpmsg.WriteResponse):
+    """The DELETE reply (empty)."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.DELETE
 
 
 class DeleteWrite(smpmsg.WriteRequest, _Group):
+    """DELETE: remove item ``name`` from the store."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.DELETE
     _Response = DeleteResponse
@@ -81,6 +95,8 @@ class DeleteWrite(smpmsg.WriteRequest, _Group):
 
 
 class StatusResponse(smpmsg.ReadResponse):
+    """The STATUS reply: the device's status, the store's figures, the link's counters."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.STATUS
 
@@ -90,12 +106,17 @@ class StatusResponse(smpmsg.ReadResponse):
 
 
 class StatusRead(smpmsg.ReadRequest, _Group):
+    """STATUS: how the device, its store and the link are doing."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.STATUS
     _Response = StatusResponse
 
 
 class ScreenshotResponse(smpmsg.ReadResponse):
+    """A SCREENSHOT reply: the PNG bytes from ``off``; ``len`` (the PNG's size) only in the
+    first chunk."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.SCREENSHOT
 
@@ -105,6 +126,8 @@ class ScreenshotResponse(smpmsg.ReadResponse):
 
 
 class ScreenshotRead(smpmsg.ReadRequest, _Group):
+    """SCREENSHOT: the frame shown now, as PNG, in chunks from ``off`` (0 takes a new one)."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.SCREENSHOT
     _Response = ScreenshotResponse
@@ -113,6 +136,9 @@ class ScreenshotRead(smpmsg.ReadRequest, _Group):
 
 
 class UploadStateResponse(smpmsg.ReadResponse):
+    """The UPLOAD_STATE reply: bytes received ``off`` of ``len`` for ``name``, and the
+    SHA-256 of what was received."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.UPLOAD_STATE
 
@@ -123,6 +149,8 @@ class UploadStateResponse(smpmsg.ReadResponse):
 
 
 class UploadStateRead(smpmsg.ReadRequest, _Group):
+    """UPLOAD_STATE: how far the upload of ``name`` has come (0 of 0 when none is pending)."""
+
     _GROUP_ID = ADAPROJ_GROUP
     _COMMAND_ID = AdaprojCommand.UPLOAD_STATE
     _Response = UploadStateResponse

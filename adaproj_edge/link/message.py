@@ -26,6 +26,8 @@ HEADER = struct.Struct("!BBHHBB")
 
 
 class Op(IntEnum):
+    """SMP header operation: a read or write request, or its response."""
+
     READ = 0
     READ_RSP = 1
     WRITE = 2

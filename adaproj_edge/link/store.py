@@ -91,6 +91,7 @@ class ActiveRecord:
     settings: dict[str, Any] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
+        """The record as a JSON-ready map (``image``, ``mask``, ``settings``)."""
         return {"image": self.image, "mask": self.mask, "settings": self.settings}
 
     def items(self) -> tuple[str, ...]:

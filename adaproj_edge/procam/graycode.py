@@ -49,6 +49,7 @@ class Pattern:
 
     @property
     def name(self) -> str:
+        """``"black"``, ``"white"``, or axis, bit and ``-inv`` for a bit pattern (``"x3-inv"``)."""
         if self.kind != "bit":
             return self.kind
         return f"{self.axis}{self.bit}{'-inv' if self.inverse else ''}"
@@ -193,10 +194,12 @@ class Decoded:
 
     @property
     def lit_fraction(self) -> float:
+        """Fraction of the camera pixels lit by the projector."""
         return float(np.mean(self.lit))
 
     @property
     def decoded_fraction(self) -> float:
+        """Fraction of the camera pixels decoded along both axes."""
         return float(np.mean(self.valid))
 
 

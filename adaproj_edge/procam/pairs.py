@@ -75,16 +75,19 @@ class Pairs:
 
     @classmethod
     def empty(cls) -> Pairs:
+        """No pairs."""
         z = np.zeros((0,))
         return cls(np.zeros((0, 2)), np.zeros((0, 3)), np.zeros((0, 2)), z, z, np.zeros(0, np.intp))
 
     @classmethod
     def concat(cls, parts: list[Pairs]) -> Pairs:
+        """The pairs of ``parts`` one after the other."""
         if not parts:
             return cls.empty()
         return cls(*(np.concatenate([getattr(p, f) for p in parts]) for f in _FIELDS))
 
     def select(self, keep: BoolArray | IntArray) -> Pairs:
+        """The pairs picked by ``keep``: a mask (n,) or indices."""
         return Pairs(*(getattr(self, f)[keep] for f in _FIELDS))
 
 

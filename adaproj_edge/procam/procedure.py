@@ -84,23 +84,29 @@ class Listener(Protocol):
         """``event``: ``"hold"``, ``"move"``, ``"retake"``, ``"captured"``, ``"done"``."""
         ...
 
-    def record(self, rec: Record) -> None: ...
+    def record(self, rec: Record) -> None:
+        """Record ``rec`` (a pattern shown, a capture, a depth frame, an IMU sample)."""
+        ...
 
 
 class Silent:
     """A listener that tells nobody and records nothing (tools, tests)."""
 
     def say(self, event: str, message: str) -> None:
+        """Say nothing."""
         pass
 
     def record(self, rec: Record) -> None:
+        """Record nothing."""
         pass
 
 
 class ShowLog(Protocol):
     """Puts a pattern on the display and says when (ns)."""
 
-    def show(self, pose: int, index: int, name: str, frame: Image) -> int: ...
+    def show(self, pose: int, index: int, name: str, frame: Image) -> int:
+        """Show ``frame``, pattern ``index`` (``name``) of pose ``pose``; its time in ns."""
+        ...
 
 
 class LiveShow:
@@ -111,6 +117,7 @@ class LiveShow:
         self.display, self.clock, self.listener = display, clock, listener
 
     def show(self, pose: int, index: int, name: str, frame: Image) -> int:
+        """Show ``frame`` and record it; the clock's time at the display call, in ns."""
         self.display.show(frame)
         t = self.clock.now_ns()
         self.listener.record(PatternShown(t, pose, index, name))
@@ -127,6 +134,8 @@ class ReplayShow:
         self._it, self.clock, self.display = shown, clock, display
 
     def show(self, pose: int, index: int, name: str, frame: Image) -> int:
+        """Show ``frame`` (if there is a display) and return the recorded time of the same
+        pattern, in ns; a :class:`CalibrationError` if the recording shows another."""
         if self.display is not None:
             self.display.show(frame)
         rec = next(self._it, None)
@@ -189,6 +198,8 @@ class ImuLog:
         return t, g, a
 
     def window(self, t0: int, t1: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Sensor times (n,) ns, gyro (n, 3) and accel (n, 3) of the samples in
+        ``[t0, t1]`` ns."""
         t, g, a = self.arrays()
         k = (t >= t0) & (t <= t1)
         return t[k], g[k], a[k]

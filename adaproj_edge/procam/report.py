@@ -58,6 +58,7 @@ class Verdict:
 
     @property
     def writable(self) -> bool:
+        """Whether the calibration may be written: good or acceptable."""
         return self.level in ("good", "acceptable")
 
 

@@ -89,6 +89,8 @@ class ProjectorModel:
 
     @classmethod
     def from_params(cls, p: FloatArray) -> ProjectorModel:
+        """The model of a solver parameter vector ``p`` (14,), the inverse of :attr:`params`
+        (a (10,) vector: no distortion)."""
         K = np.array([[p[0], 0.0, p[2]], [0.0, p[1], p[3]], [0.0, 0.0, 1.0]])
         T = np.eye(4)
         T[:3, :3] = rotation_matrix(p[4:7])

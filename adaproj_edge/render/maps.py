@@ -57,6 +57,8 @@ class PixelLayout:
 
     @classmethod
     def build(cls, grid_uv: FloatArray, projector: Projector) -> PixelLayout:
+        """The layout of the grid with vertices at ``grid_uv`` (R, C, 2) in the frame of
+        ``projector``."""
         rows, cols = grid_uv.shape[:2]
         corners = grid_triangles(rows - 1, cols - 1)
         cx, fx = grid_cells(grid_uv[0, :, 0], projector.width)

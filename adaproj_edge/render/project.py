@@ -18,6 +18,10 @@ from adaproj_edge.warp.warpmap import Warp
 
 @dataclass(frozen=True)
 class Projection:
+    """What :func:`project` and :func:`show` make: the warp, the per-pixel map ``map_xy``
+    (H, W, 2) float32 in content pixels, the remap maps that render it and the frame
+    (H, W, 3) uint8."""
+
     warp: Warp
     map_xy: NDArray[np.float32]
     maps: RemapMaps

@@ -105,6 +105,8 @@ class StopPath(HandMotion):
     move_s: float = MOVE_S
 
     def state(self, t: FloatArray) -> FloatArray:
+        """Translation and rotation vector (N, 6) at times ``t`` (N,) seconds: the first stop,
+        then each move's minimum-jerk path from its start."""
         t = np.asarray(t, dtype=np.float64)
         x = np.broadcast_to(self.stops[0], (len(t), 6)).copy()
         for t0, a, b in self.moves:
@@ -181,9 +183,12 @@ class SimDisplay:
 
     @property
     def size(self) -> tuple[int, int]:
+        """(width, height) in pixels."""
         return self._size
 
     def show(self, frame: Image) -> None:
+        """Queue a (height, width, 3) BGR frame to reach the wall, grey, after the display
+        latency."""
         w = self.world
         lat = int(w.settings.display_latency_ms * 1e6)
         if frame.ndim == 3 and frame.strides[2] == 0:  # one grey value per pixel
@@ -193,6 +198,7 @@ class SimDisplay:
         w.shown.append((w.clock.now_ns() + lat, len(w.shown), grey))
 
     def close(self) -> None:
+        """Nothing to release."""
         pass
 
 
@@ -244,6 +250,8 @@ class SimCamera(FixedCamera):
         return self._view
 
     def read(self) -> CameraFrame | None:
+        """The next frame: the scene lit by what is on the wall at mid-exposure, with sensor
+        noise (the projector dark when ``projector_off``)."""
         w = self.world
         cam = w.settings.camera
         seq, sensor, receive = self._queue.take()
@@ -271,9 +279,12 @@ class SimDepth:
 
     @property
     def model(self) -> DepthCameraModel:
+        """The true rig's depth camera model."""
         return self.world.rig.depth
 
     def read(self) -> DepthFrame | None:
+        """The next depth frame: the scene seen from the pose at its sensor time, through the
+        stereo error model."""
         w = self.world
         seq, sensor, receive = self._queue.take()
         R, p = w.pose(sensor)
@@ -283,6 +294,7 @@ class SimDepth:
         return DepthFrame(sensor, receive, seq, depth)
 
     def close(self) -> None:
+        """Nothing to release."""
         pass
 
 
@@ -330,6 +342,7 @@ class SimImu:
         self.k = k1
 
     def read(self) -> ImuSample | None:
+        """The oldest sample not yet read, made up to the clock's time; None when none is due."""
         if not self._ready:
             due = (self.world.clock.now_ns() - 400_000 - T0_NS) // self.dt_ns + 1
             if due > self.k:
@@ -337,6 +350,7 @@ class SimImu:
         return self._ready.pop(0) if self._ready else None
 
     def close(self) -> None:
+        """Nothing to release."""
         pass
 
 
@@ -355,6 +369,8 @@ class SimUser:
         self.shaken = False
 
     def say(self, event: str, message: str) -> None:
+        """Hear the procedure's ``event``: on "move" start moving to the next stop, on
+        "capture" record the true pose (and shake once when the faults say so)."""
         w = self.world
         if self.tell is not None:
             self.tell(event, message)
@@ -374,6 +390,7 @@ class SimUser:
                 w.path.moves.append((now_s + 1.0 + MOVE_S, nudge, here))
 
     def record(self, rec: Record) -> None:
+        """Forward ``rec`` to the sink."""
         self.sink(rec)
 
 
@@ -414,6 +431,7 @@ def sim_rig(scene: Scene, rig: Calibration, settings: CalibrationSimSettings) ->
 
 
 def session_metadata(scene: Scene, settings: CalibrationSimSettings) -> dict[str, str]:
+    """The session's ``metadata`` record: source, kind, surface spec, seed and poses."""
     return {
         "source": "simulator",
         "kind": "calibration",
@@ -424,6 +442,7 @@ def session_metadata(scene: Scene, settings: CalibrationSimSettings) -> dict[str
 
 
 def camera_attachment(K: FloatArray, size: tuple[int, int]) -> dict[str, Any]:
+    """The camera attachment: intrinsics ``K`` (3, 3) and frame size (width, height)."""
     return {"K": np.asarray(K).tolist(), "width": size[0], "height": size[1]}
 
 

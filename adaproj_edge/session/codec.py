@@ -25,6 +25,7 @@ CAMERA_FRAME_ID = "camera"
 
 
 def topic_of(rec: Record) -> str:
+    """The session topic ``rec`` is written on."""
     if isinstance(rec, DepthFrame):
         return s.DEPTH
     if isinstance(rec, ImuSample):
@@ -41,6 +42,8 @@ def topic_of(rec: Record) -> str:
 
 
 def sensor_time(rec: Record) -> int:
+    """The record's sensor time in ns: ``sensor_ns``, or ``t_ns``, or ``receive_ns`` for
+    serial traffic."""
     if isinstance(rec, SerialTraffic):
         return rec.receive_ns
     if isinstance(rec, TruthPose | PatternShown):

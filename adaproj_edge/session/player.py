@@ -37,23 +37,29 @@ class Replay:
         self.clock = VirtualClock()
 
     def events(self) -> Iterator[Record]:
+        """Every record in recorded order, the clock moved to each one's receive time."""
         for rec in iter_records(self.path):
             self.clock.advance_to(rec.receive_ns)
             yield rec
 
     def depth_camera(self) -> ReplayDepthCamera:
+        """The session's depth frames as a depth camera with the recorded model."""
         frames = (r for r in iter_records(self.path, {s.DEPTH}) if isinstance(r, DepthFrame))
         return ReplayDepthCamera(self.calibration.depth, frames, self.clock)
 
     def imu(self) -> ReplayImu:
+        """The session's IMU samples as an IMU."""
         samples = (r for r in iter_records(self.path, {s.IMU}) if isinstance(r, ImuSample))
         return ReplayImu(samples, self.clock)
 
     def button(self) -> ReplayButton:
+        """The session's button events as a button."""
         evs = (r for r in iter_records(self.path, {s.BUTTON}) if isinstance(r, ButtonEvent))
         return ReplayButton(evs, self.clock)
 
     def serial_port(self) -> ReplayPort:
+        """The session's ``rx`` serial traffic as a port (``tx`` is dropped: the code under
+        replay writes its own)."""
         topics = {s.SERIAL_RX, s.SERIAL_TX}
         traffic = (r for r in iter_records(self.path, topics) if isinstance(r, SerialTraffic))
         return ReplayPort(traffic, self.clock)

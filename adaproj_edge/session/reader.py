@@ -154,6 +154,7 @@ class Session:
     records: list[Record]
 
     def truth_surface_spec(self) -> dict[str, Any] | None:
+        """The truth surface attachment (simulated sessions), or None."""
         raw = self.attachments.get(s.TRUTH_SURFACE_ATTACHMENT)
         return None if raw is None else dict(json.loads(raw))
 

@@ -52,6 +52,7 @@ class Recorder:
         self.add(SerialTraffic(self.clock.now_ns(), direction, bytes(data)))
 
     def stop(self) -> None:
+        """Make :meth:`run` finish (thread-safe)."""
         self._stop.set()
 
     def _pump(self, source: Source) -> None:
@@ -127,6 +128,7 @@ class SessionTap:
             log.error("%s", self.error)
 
     def start(self) -> None:
+        """Start the writer thread."""
         self._thread.start()
 
     def add(self, rec: Record) -> None:

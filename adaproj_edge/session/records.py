@@ -33,6 +33,7 @@ class TruthPose:
 
     @property
     def receive_ns(self) -> int:
+        """The pose's time ``t_ns`` (a truth pose is not received: it is known)."""
         return self.t_ns
 
 
@@ -49,4 +50,5 @@ class PatternShown:
 
     @property
     def receive_ns(self) -> int:
+        """The display call's time ``t_ns``."""
         return self.t_ns

@@ -27,16 +27,19 @@ class RecordingPort:
         self.sink = sink
 
     def read(self, size: int, timeout: float) -> bytes:
+        """Read from the wrapped port; what came is sent to the sink as ``rx``."""
         data = self.port.read(size, timeout)
         if data:
             self.sink("rx", data)
         return data
 
     def write(self, data: bytes) -> None:
+        """Write to the wrapped port, then send ``data`` to the sink as ``tx``."""
         self.port.write(data)
         self.sink("tx", bytes(data))
 
     def close(self) -> None:
+        """Close the wrapped port."""
         self.port.close()
 
 
@@ -54,6 +57,8 @@ class ReplayPort:
         self.written: list[bytes] = []
 
     def read(self, size: int, timeout: float) -> bytes:
+        """At most ``size`` bytes of the next recorded ``rx`` chunk (``timeout`` is ignored);
+        ``b""`` at the end of the recording."""
         if not self._pending:
             rec = self._stream.next()
             if rec is None:
@@ -63,7 +68,9 @@ class ReplayPort:
         return out
 
     def write(self, data: bytes) -> None:
+        """Keep ``data`` in :attr:`written`."""
         self.written.append(bytes(data))
 
     def close(self) -> None:
+        """Nothing to release."""
         pass

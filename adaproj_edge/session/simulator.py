@@ -90,6 +90,8 @@ class SimulationSettings:
     motion: HandMotion | None = None
 
     def hand(self) -> HandMotion:
+        """The hand motion to simulate: :attr:`motion`, or a hand path of ``seconds`` seeded
+        with ``seed``."""
         return self.motion or HandMotion(self.seconds, self.seed)
 
 

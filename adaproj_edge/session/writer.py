@@ -86,9 +86,11 @@ class SessionWriter:
         self.count += 1
 
     def attach(self, name: str, media_type: str, data: bytes, t_ns: int = 0) -> None:
+        """Attach ``data`` (of MIME type ``media_type``) under ``name``, at ``t_ns``."""
         self._mcap.add_attachment(t_ns, t_ns, name, media_type, data)
 
     def attach_json(self, name: str, obj: object, t_ns: int = 0) -> None:
+        """Attach ``obj`` as JSON under ``name``, at ``t_ns``."""
         self.attach(name, "application/json", json.dumps(obj).encode(), t_ns)
 
     def flush(self) -> None:

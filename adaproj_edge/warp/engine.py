@@ -42,7 +42,11 @@ from adaproj_edge.warp.warpmap import Grid, Warp
 
 
 class StepSolver(Protocol):
-    def step(self, v: FloatArray, w: FloatArray) -> FloatArray: ...
+    """A content-aware solver: one solve at a time from the previous iterate."""
+
+    def step(self, v: FloatArray, w: FloatArray) -> FloatArray:
+        """One solve with saliency ``w`` (n,) in {0, 1} from the iterate ``v`` (n, 2)."""
+        ...
 
 
 @dataclass(frozen=True)

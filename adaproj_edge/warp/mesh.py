@@ -50,6 +50,7 @@ class Topology:
 
     @classmethod
     def from_triangles(cls, cand: IntArray, n_vertices: int) -> Topology:
+        """The topology of the kept triangles ``cand`` (T, 3) of a grid of ``n_vertices``."""
         used = np.zeros(n_vertices, dtype=bool)
         used[cand.ravel()] = True
         index = np.full(n_vertices, -1, dtype=np.intp)
@@ -82,6 +83,8 @@ class WarpCache:
         self.misses = 0
 
     def topology(self, key: bytes, make: Callable[[], Topology]) -> Topology:
+        """The cached topology under ``key``, made by ``make()`` (and kept, the least recently
+        used one going beyond ``size``) when it is not there."""
         if key in self._items:
             self._items.move_to_end(key)
             self.hits += 1
@@ -122,30 +125,37 @@ class MeshGeometry:
 
     @property
     def used(self) -> NDArray[np.bool_]:
+        """(R*C,) bool, vertices of the kept triangles."""
         return self.topology.used
 
     @property
     def index(self) -> IntArray:
+        """(R*C,) int, compact index of used vertices (-1 elsewhere)."""
         return self.topology.index
 
     @property
     def verts(self) -> IntArray:
+        """(n,) grid index of each compact vertex."""
         return self.topology.verts
 
     @property
     def tris(self) -> IntArray:
+        """(T, 3) compact vertex indices of the kept triangles."""
         return self.topology.tris
 
     @property
     def edges(self) -> IntArray:
+        """(E, 2) undirected compact edges of the kept triangles."""
         return self.topology.edges
 
     @property
     def boundary(self) -> IntArray:
+        """(B, 2) edges on the region's boundary (holes included)."""
         return self.topology.boundary
 
     @property
     def n(self) -> int:
+        """Number of compact vertices."""
         return int(self.verts.size)
 
     @property

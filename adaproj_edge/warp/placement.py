@@ -30,6 +30,7 @@ class Placement:
     centre: FloatArray | None = None  # the rectangle's centre before scaling (warm starts)
 
     def apply(self, v: FloatArray) -> FloatArray:
+        """Content positions (n, 2) of the solved positions ``v`` (n, 2)."""
         c, s = np.cos(self.angle), np.sin(self.angle)
         r = np.array([[c, -s], [s, c]])
         out: FloatArray = self.scale * (v @ r.T) + self.offset

@@ -160,4 +160,5 @@ class PoseCache(Generic[E]):
             self._items.popitem(last=False)
 
     def clear(self) -> None:
+        """Drop every entry (the hit and miss counts stay)."""
         self._items.clear()

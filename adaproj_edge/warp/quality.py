@@ -20,11 +20,24 @@ from adaproj_edge.geometry.surface import Surface
 
 @dataclass(frozen=True)
 class Quality:
+    """Distortion figures of a warp over ``samples`` sample triangles.
+
+    Attributes
+    ----------
+    angle_error : float
+        Mean of sigma1 / sigma2 - 1 (0 for a conformal map).
+    size_inconsistency : float
+        Standard deviation of log sqrt(sigma1 sigma2).
+    samples : int
+        Sample triangles counted (NaN figures when 0).
+    """
+
     angle_error: float  # mean of sigma1 / sigma2 - 1
     size_inconsistency: float  # std of log sqrt(sigma1 sigma2)
     samples: int
 
     def as_dict(self) -> dict[str, float]:
+        """The figures as a JSON-ready dict."""
         return {
             "angle_error": self.angle_error,
             "size_inconsistency": self.size_inconsistency,
@@ -61,6 +74,7 @@ def triangle_distortion(
 
 
 def summarise(angle: FloatArray, log_size: FloatArray) -> Quality:
+    """The :class:`Quality` of per-triangle angle errors and log sizes, (N,) each."""
     if angle.size == 0:
         return Quality(float("nan"), float("nan"), 0)
     return Quality(float(np.mean(angle)), float(np.std(log_size)), int(angle.size))

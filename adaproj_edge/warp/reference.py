@@ -131,6 +131,7 @@ class ReferenceContentAwareSolver:
     weights: ContentAwareWeights = field(default_factory=ContentAwareWeights)
 
     def step(self, v: FloatArray, w: FloatArray) -> FloatArray:
+        """One solve with saliency ``w`` (n,) in {0, 1} from the iterate ``v`` (n, 2)."""
         mesh, cw = self.mesh, self.weights
         n = mesh.n
         asm = _Assembler()

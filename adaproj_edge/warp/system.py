@@ -38,6 +38,7 @@ class Rows:
 
     @staticmethod
     def concat(blocks: list[Rows]) -> Rows:
+        """The blocks' rows stacked, columns padded to the widest block (-1 cols, 0 vals)."""
         k = max(b.cols.shape[1] for b in blocks)
 
         def pad(a: NDArray[np.generic], fill: float) -> NDArray[np.generic]:

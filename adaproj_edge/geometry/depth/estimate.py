@@ -58,6 +58,7 @@ class SurfaceEstimate:
         return float(np.mean(self.confidence))
 
     def summary(self) -> dict[str, float | int]:
+        """Coverage, mean confidence, filled node count and frames, for telemetry (rounded)."""
         return {
             "coverage": round(self.coverage, 4),
             "confidence": round(self.mean_confidence, 4),

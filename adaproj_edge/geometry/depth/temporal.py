@@ -28,11 +28,29 @@ class SurfaceFilter:
         self.current: SurfaceEstimate | None = None
 
     def reset(self) -> None:
+        """Forget the running mean; the next estimate starts it over."""
         self._s = self._w = self._c = None
         self._n = 0
         self.current = None
 
     def update(self, est: SurfaceEstimate, still: bool) -> SurfaceEstimate:
+        """Fold ``est`` into the running mean and return the averaged estimate.
+
+        Parameters
+        ----------
+        est : SurfaceEstimate
+            The newest estimate; its lattice shape must stay the same for it to be averaged.
+        still : bool
+            Whether the device has been still since the previous estimate; when not (or
+            when the lattice shape changed) the mean restarts from ``est``.
+
+        Returns
+        -------
+        SurfaceEstimate
+            Depths along each node's ray averaged with confidence weights (a node that
+            jumped starts over), the weighted confidence, and ``frames`` the number of
+            frames in the mean (at most ``max_frames``). Also kept as :attr:`current`.
+        """
         pts = est.surface.points.astype(np.float64)
         s_new = pts[..., 2]
         c_new = est.confidence.astype(np.float64)
