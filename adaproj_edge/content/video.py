@@ -14,6 +14,9 @@ presentation time; :meth:`VideoReader.at` gives the frame to show at a clip time
 decodes forward, skipping what a late player missed). A frame that fails to decode is a
 value (:class:`VideoFrame` with ``error`` set and the last good image), never an
 exception: the player keeps the last good frame and logs why.
+
+This file is about 400 lines on purpose: the checks and the reader share the
+container and codec facts and the bounded decode.
 """
 
 from __future__ import annotations

@@ -17,6 +17,9 @@ File system (8)
     close (4). Names are content-store names; see :func:`~adaproj_edge.link.store.check_name`.
 adaproj (65)
     see :class:`~adaproj_edge.link.ids.AdaprojCommand`.
+
+This file is about 420 lines on purpose: one class with one small handler per SMP
+command, dispatched from one table, sharing the server's upload state and counters.
 """
 
 from __future__ import annotations

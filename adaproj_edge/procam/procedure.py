@@ -30,6 +30,11 @@ depth and camera frames used, the patterns shown).
 
 ``adaproj calibrate`` and the runtime's "hold the button 5 s" gesture call
 :func:`capture_poses`, then :func:`~adaproj_edge.procam.result.solve_capture`.
+
+This file is about 460 lines on purpose: the pose loop and the checks it makes
+between captures (stillness, turns during a capture, dark or saturated captures)
+share the IMU log, the settings and the listener; apart, each would reach into the
+other's state.
 """
 
 from __future__ import annotations

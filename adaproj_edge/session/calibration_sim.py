@@ -25,6 +25,11 @@ nothing, a user who shakes the device during a capture, a camera exposed too lon
 (every record the procedure keeps), with the *nominal* calibration as the session's
 calibration and the true rig as ground truth (``truth-calibration.json``).
 Everything follows from the seed.
+
+This file is about 540 lines on purpose: the simulated devices share one world
+(:class:`SimWorld`: the true rig's pose on the virtual clock, the scene, the light)
+and only make sense together; the rendering of a camera image is in
+:mod:`~adaproj_edge.session.scene_render`.
 """
 
 from __future__ import annotations
