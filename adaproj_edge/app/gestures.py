@@ -1,8 +1,10 @@
-"""One button, three gestures.
+"""One button, four gestures.
 
 - **press** (short, alone): reported once the double-press window has passed;
 - **double** press: the second press within ``double_press_s`` of the first release;
-- **long** press: held ``long_press_s`` or more (reported on release).
+- **long** press: held ``long_press_s`` or more (reported on release);
+- **hold**: held ``hold_s`` or more (reported while still held, as soon as the time is
+  up, so the user knows to let go; the release that follows is no gesture).
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from typing import Literal
 
 from adaproj_edge.hal.button import ButtonEvent
 
-Gesture = Literal["press", "double", "long"]
+Gesture = Literal["press", "double", "long", "hold"]
 
 
 class Gestures:
@@ -21,21 +23,32 @@ class Gestures:
     ----------
     double_press_s, long_press_s : float
         The double-press window and the long-press hold, seconds.
+    hold_s : float
+        The hold that starts the calibration, seconds (longer than ``long_press_s``).
     """
 
-    def __init__(self, double_press_s: float, long_press_s: float) -> None:
+    def __init__(self, double_press_s: float, long_press_s: float, hold_s: float = 5.0) -> None:
+        if hold_s <= long_press_s:
+            raise ValueError(
+                f"the hold ({hold_s:g} s) must outlast a long press ({long_press_s:g} s)"
+            )
         self.double_ns = double_press_s * 1e9
         self.long_ns = long_press_s * 1e9
+        self.hold_ns = hold_s * 1e9
         self._press_ns: int | None = None
         self._single_ns: int | None = None
+        self._held = False  # the press down now was reported as a hold
 
     def on_button(self, ev: ButtonEvent) -> Gesture | None:
         """A long or double press completed by ``ev``, else None (a single press waits
         for :meth:`tick`)."""
         if ev.pressed:
             self._press_ns = ev.receive_ns
+            self._held = False
             return None
-        if self._press_ns is None:
+        if self._press_ns is None or self._held:
+            self._press_ns = None
+            self._held = False
             return None
         held = ev.receive_ns - self._press_ns
         press = self._press_ns
@@ -50,7 +63,16 @@ class Gestures:
         return None
 
     def tick(self, now_ns: int) -> Gesture | None:
-        """ "press" once a single press has waited out the double-press window."""
+        """ "hold" once the button has been down ``hold_s``; "press" once a single press
+        has waited out the double-press window."""
+        if (
+            self._press_ns is not None
+            and not self._held
+            and now_ns - self._press_ns >= self.hold_ns
+        ):
+            self._held = True
+            self._single_ns = None
+            return "hold"
         if self._single_ns is not None and now_ns - self._single_ns > self.double_ns:
             self._single_ns = None
             return "press"

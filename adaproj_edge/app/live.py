@@ -1,8 +1,12 @@
 """The runtime on the board: one reader thread per device feeding one queue, the
 runtime on the main thread, the SMP server on a thread of its own.
 
-A device that fails is reported to the runtime (status mark) and opened again every
-``retry_s``; the projector keeps the last good frame meanwhile.
+A device that fails is reported to the runtime (status mark), closed, and opened again
+every ``retry_s``; the projector keeps the last good frame meanwhile.
+
+The hold gesture (calibration) stops the reader threads, which close their devices,
+and hands the board to :func:`~adaproj_edge.app.calibration_run.calibrate_device` on
+the main thread (the link goes on serving); the readers start again afterwards.
 
 With a :class:`~adaproj_edge.session.recorder.SessionTap` (``adaproj run --record``)
 every input handed to the runtime and the link's traffic are recorded into one
@@ -15,8 +19,9 @@ import logging
 import queue
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol, TypeVar
 
 from adaproj_edge.app.content import builtin_item
 from adaproj_edge.app.inputs import RECORDED, Input, SourceFault, feed
@@ -24,6 +29,7 @@ from adaproj_edge.app.memory import pin_mmap_threshold
 from adaproj_edge.app.runtime import Runtime
 from adaproj_edge.app.settings import AppSettings
 from adaproj_edge.errors import AdaprojError, DeviceError
+from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.board import Board
 from adaproj_edge.hal.button import EvdevButton
 from adaproj_edge.hal.clock import Clock, MonotonicClock
@@ -40,14 +46,45 @@ from adaproj_edge.session.writer import SessionWriter
 log = logging.getLogger(__name__)
 
 Reader = Callable[[], Input | None]
+Calibrate = Callable[[], tuple[Calibration | None, str]]
+
+
+class _Closable(Protocol):
+    def close(self) -> None: ...
+
+
+_C = TypeVar("_C", bound=_Closable)
+
+
+class _Held:
+    """The device a source has open now (so that it can be closed when its reader
+    fails or its thread stops)."""
+
+    def __init__(self) -> None:
+        self.device: _Closable | None = None
+
+    def keep(self, device: _C) -> _C:
+        self.device = device
+        return device
+
+    def close(self) -> None:
+        device, self.device = self.device, None
+        if device is not None:
+            device.close()
+
+
+def _leave_open() -> None:
+    pass
 
 
 @dataclass
 class _Source:
-    """A device read in its own thread: ``open`` (re)creates the reader."""
+    """A device read in its own thread: ``open`` (re)creates the reader, ``close``
+    closes what it opened."""
 
     name: str
     open: Callable[[], Reader]
+    close: Callable[[], None] = _leave_open
 
 
 def _pump(
@@ -58,24 +95,37 @@ def _pump(
     retry_s: float,
 ) -> None:
     read: Reader | None = None
-    while not stop.is_set():
-        try:
-            if read is None:
-                read = src.open()
-                log.info("%s open", src.name)
-            item = read()
-            if item is not None:
-                out.put(item)
-        except AdaprojError as e:
-            out.put(SourceFault(src.name, str(e)))
-            read = None
-            clock.sleep_until(clock.now_ns() + int(retry_s * 1e9))
+    try:
+        while not stop.is_set():
+            try:
+                if read is None:
+                    read = src.open()
+                    log.info("%s open", src.name)
+                item = read()
+                if item is not None:
+                    out.put(item)
+            except AdaprojError as e:
+                out.put(SourceFault(src.name, str(e)))
+                read = None
+                _close(src)
+                clock.sleep_until(clock.now_ns() + int(retry_s * 1e9))
+    finally:
+        _close(src)
+
+
+def _close(src: _Source) -> None:
+    try:
+        src.close()
+    except AdaprojError as e:
+        log.warning("closing the %s: %s", src.name, e)
 
 
 @dataclass
 class Device:
     """What :func:`run_loop` runs: the runtime, the link (server and port, ``None``
-    without a link), the input sources, and optionally a session being recorded."""
+    without a link), the input sources, optionally a session being recorded, and the
+    calibration the hold gesture runs (``None``: the gesture is answered "no
+    calibration on this device")."""
 
     runtime: Runtime
     server: Server
@@ -83,6 +133,71 @@ class Device:
     sources: list[_Source]
     clock: Clock
     tap: SessionTap | None = None
+    calibrate: Calibrate | None = field(default=None)
+
+
+class _Readers:
+    """The source threads, stopped and started again around a calibration."""
+
+    def __init__(self, device: Device, out: queue.Queue[Input], retry_s: float) -> None:
+        self.device, self.out, self.retry_s = device, out, retry_s
+        self.halt = threading.Event()
+        self.threads: list[threading.Thread] = []
+
+    def start(self) -> None:
+        self.halt = threading.Event()
+        self.threads = [
+            threading.Thread(
+                target=_pump,
+                args=(src, self.out, self.halt, self.device.clock, self.retry_s),
+                daemon=True,
+                name=src.name,
+            )
+            for src in self.device.sources
+        ]
+        for t in self.threads:
+            t.start()
+
+    def pause(self, timeout_s: float = 5.0) -> None:
+        """Stop the threads (they close their devices); what they read is dropped."""
+        self.halt.set()
+        clock = self.device.clock
+        deadline = clock.now_ns() + int(timeout_s * 1e9)
+        for t in self.threads:
+            while t.is_alive() and clock.now_ns() < deadline:
+                _drain(self.out)  # a reader blocked on a full queue gets to stop
+                t.join(timeout=0.05)
+            if t.is_alive():
+                log.warning("the %s reader did not stop within %g s", t.name, timeout_s)
+        _drain(self.out)
+
+
+def _drain(q: queue.Queue[Input]) -> None:
+    while True:
+        try:
+            q.get_nowait()
+        except queue.Empty:
+            return
+
+
+def _calibrate(device: Device, readers: _Readers) -> None:
+    """The hold gesture: readers stopped, the calibration run, the runtime told."""
+    runtime = device.runtime
+    if device.calibrate is None:
+        runtime.recalibrate(None, "no calibration on this device")
+        return
+    log.info("calibration asked for: stopping the depth camera and IMU readers")
+    readers.pause()  # what they read before is stale after the calibration
+    try:
+        calibration, message = device.calibrate()
+        log.info("calibration: %s", message)
+        try:
+            runtime.recalibrate(calibration, message)
+        except AdaprojError as e:
+            log.error("%s", e)
+            runtime.recalibrate(None, str(e))
+    finally:
+        readers.start()
 
 
 def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float = 1.0) -> None:
@@ -91,39 +206,34 @@ def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float
     stop = stop or threading.Event()
     runtime, server, tap = device.runtime, device.server, device.tap
     inputs: queue.Queue[Input] = queue.Queue(maxsize=256)
-    threads = [
-        threading.Thread(
-            target=_pump,
-            args=(src, inputs, stop, device.clock, retry_s),
-            daemon=True,
-            name=src.name,
-        )
-        for src in device.sources
-    ]
+    readers = _Readers(device, inputs, retry_s)
     link = None
     if device.port is not None:
         port = tap.port(device.port) if tap is not None else device.port
         link = threading.Thread(target=serve, args=(port, server, stop), daemon=True, name="link")
-        threads.append(link)
     runtime.boot()
     server.restore_active()
     if tap is not None:
         tap.start()
-    for t in threads:
-        t.start()
+    readers.start()
+    if link is not None:
+        link.start()
     try:
         while not stop.is_set():
             try:
                 item = inputs.get(timeout=0.02)
             except queue.Empty:
                 runtime.tick()
-                continue
-            runtime.tick()
-            if tap is not None and isinstance(item, RECORDED):
-                tap.add(item)
-            feed(runtime, item)
+            else:
+                runtime.tick()
+                if tap is not None and isinstance(item, RECORDED):
+                    tap.add(item)
+                feed(runtime, item)
+            if runtime.calibration_wanted:
+                _calibrate(device, readers)
     finally:
         stop.set()
+        readers.pause(timeout_s=2.0)  # the readers close their devices
         if tap is not None:
             if link is not None:
                 link.join(timeout=1.0)  # its last reply goes into the recording
@@ -146,10 +256,13 @@ def run_device(
     calibration = board.calibration()
     display = FramebufferDisplay(board.display_device)
     runtime = Runtime(calibration, display, clock, [builtin_item()], settings, state_dir=state_dir)
+    imu_held, depth_held, button_held = _Held(), _Held(), _Held()
 
     def open_imu() -> Reader:
         bus = open_i2c(board.imu.bus)
-        imu = Lsm6dsox(bus, clock, board.imu.address, board.imu.config, f"/dev/i2c-{board.imu.bus}")
+        imu = imu_held.keep(
+            Lsm6dsox(bus, clock, board.imu.address, board.imu.config, f"/dev/i2c-{board.imu.bus}")
+        )
         imu.start()
 
         def read() -> ImuSample | None:
@@ -161,16 +274,21 @@ def run_device(
         return read
 
     def open_depth() -> Reader:
-        return OakDepthCamera(board.depth, clock).read
+        return depth_held.keep(OakDepthCamera(board.depth, clock)).read
 
     def open_button() -> Reader:
-        button = EvdevButton(board.button_device, board.key_code, clock)
+        button = button_held.keep(EvdevButton(board.button_device, board.key_code, clock))
         return lambda: button.read(0.1)
 
+    def calibrate() -> tuple[Calibration | None, str]:
+        from adaproj_edge.app.calibration_run import calibrate_device
+
+        return calibrate_device(board, display, clock, runtime.calibration)
+
     sources = [
-        _Source("imu", open_imu),
-        _Source("depth", open_depth),
-        _Source("button", open_button),
+        _Source("imu", open_imu, imu_held.close),
+        _Source("depth", open_depth, depth_held.close),
+        _Source("button", open_button, button_held.close),
     ]
     server = Server(ContentStore(store_dir), runtime)
     server.on_reset = server.restore_active
@@ -185,6 +303,7 @@ def run_device(
             meta = {"source": "device", "board": board.name, "command": "run"}
             tap = SessionTap(SessionWriter(record, calibration, meta, clock.now_ns()), clock)
             log.info("recording to %s", record)
-        run_loop(Device(runtime, server, port, sources, clock, tap), retry_s=retry_s)
+        device = Device(runtime, server, port, sources, clock, tap, calibrate)
+        run_loop(device, retry_s=retry_s)
     finally:
         display.close()

@@ -42,6 +42,7 @@ from adaproj_edge.app.runtime import Runtime
 from adaproj_edge.app.scoring import MEASURES, Scorer, SideViews
 from adaproj_edge.app.settings import AppSettings
 from adaproj_edge.errors import InputError
+from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.button import ButtonEvent
 from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.display import MemoryDisplay
@@ -84,6 +85,8 @@ class ReplayOptions:
     all_frames: bool = False
     score: bool = True
     side_views: bool = True  # a few moments seen from the side, in the contact sheet
+    # replaces the session's calibration (its depth model stays the session's)
+    calibration: Calibration | None = None
 
 
 def session_faults(metadata: dict[str, dict[str, str]]) -> list[InjectedFault]:
@@ -150,6 +153,8 @@ def _replay(
 ) -> tuple[dict[str, Any], FrameSampler]:
     frames = FrameSampler(out_dir, options.all_frames)
     cal = replay.calibration
+    if options.calibration is not None:
+        cal = options.calibration.with_depth(cal.depth)
     display = MemoryDisplay(cal.projector.width, cal.projector.height)
     settings = replace(options.settings, keep_shown_map=options.score)
     rt = Runtime(cal, display, replay.clock, [builtin_item()], settings, mask_content_map, frames)
@@ -158,7 +163,8 @@ def _replay(
     side = SideViews(rt) if options.side_views and out_dir is not None else None
     spec_raw = scan.attachments.get(schemas.TRUTH_SURFACE_ATTACHMENT)
     if options.score and spec_raw is not None:
-        scorer = Scorer(scene_of_session(json.loads(spec_raw), scan.attachments), rt)
+        scene = scene_of_session(json.loads(spec_raw), scan.attachments)
+        scorer = Scorer(scene, rt, scan.attachments)
     t0: int | None = None
     rss: list[float] = []
     pose: TruthPose | None = None
@@ -182,6 +188,8 @@ def _replay(
             pose = rec
         elif isinstance(rec, SerialTraffic):
             link.feed(rec)
+        if rt.calibration_wanted:  # the hold gesture: no devices to hand over here
+            rt.recalibrate(None, "a replay has no devices to calibrate")
         if n_records % 200 == 0:
             rss.append(round(rss_mb(), 1))
     if t0 is None:

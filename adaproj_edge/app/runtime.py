@@ -10,6 +10,11 @@ Gestures (one button, :mod:`adaproj_edge.app.gestures`)
 - **press**: capture the surface and project; while projecting, re-aim.
 - **double press**: next content item.
 - **long press**: toggle content-aware / plain (no pre-warp) projection.
+- **hold** (``calibrate_hold_s``, 5 s): calibrate. The runtime only raises
+  :attr:`Runtime.calibration_wanted`; the device loop (:mod:`adaproj_edge.app.live`)
+  hands the devices to the calibration procedure and gives the result back through
+  :meth:`Runtime.recalibrate`. A replay has no devices to hand over: the request is
+  logged as an event and dropped.
 
 While projecting
 ----------------
@@ -119,7 +124,7 @@ class Runtime:
         self.last_warp = LastWarp(state_dir)
         self.telemetry = t = Telemetry(s.history)
         self.motion = MotionTracker(calibration.R_P_I, s.motion)
-        self.gestures = Gestures(s.double_press_s, s.long_press_s)
+        self.gestures = Gestures(s.double_press_s, s.long_press_s, s.calibrate_hold_s)
         self.surfaces = SurfaceSource(calibration, s, t.times)
         self.warps = WarpSource(calibration.projector, s, t)
         self.faults = Faults()
@@ -140,6 +145,7 @@ class Runtime:
         self._last_estimate_ns: int | None = None
         self._motion_ns: int | None = None
         self.inbox = Inbox()
+        self.calibration_wanted = False  # the hold gesture asks the device loop for it
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -333,6 +339,36 @@ class Runtime:
             self.plain = not self.plain
             self._event("mode", plain=self.plain)
             self._reshow("mode")
+        elif kind == "hold":
+            self.calibration_wanted = True
+
+    def recalibrate(self, calibration: Calibration | None, reason: str) -> None:
+        """Go on after a calibration run: with ``calibration`` (a new one was written;
+        ``None`` keeps the one in use), from idle, the content shown plainly.
+
+        Raises
+        ------
+        AdaprojError
+            ``calibration`` describes another projector size than the display's (the
+            runtime keeps the calibration in use).
+        """
+        self.calibration_wanted = False
+        if calibration is not None:
+            old, new = self.calibration.projector, calibration.projector
+            if (new.width, new.height) != (old.width, old.height):
+                raise AdaprojError(
+                    f"the new calibration is for a {new.width}x{new.height} projector, "
+                    f"the display is {old.width}x{old.height}; the old one stays in use"
+                )
+            s, t = self.settings, self.telemetry
+            self.calibration = calibration
+            self.motion = MotionTracker(calibration.R_P_I, s.motion)
+            self.surfaces = SurfaceSource(calibration, s, t.times)
+            self.warps = WarpSource(calibration.projector, s, t)
+            self.surface = None
+        self._event("calibrated", changed=calibration is not None, reason=reason)
+        self._set_state(State.IDLE)
+        self._show_plain("calibration")
 
     def _start_capture(self) -> None:
         self.surfaces.filter.reset()

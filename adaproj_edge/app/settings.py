@@ -19,6 +19,7 @@ class AppSettings:
     capture_timeout_s: float = 0.6
     double_press_s: float = 0.35
     long_press_s: float = 0.8
+    calibrate_hold_s: float = 5.0  # the hold that starts the calibration (device only)
     moving_interval_s: float = 0.1
     still_interval_s: float = 0.2
     hysteresis_rel: float = 0.004

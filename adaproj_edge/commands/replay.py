@@ -10,8 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from adaproj_edge.app.replay import ReplayOptions, replay_session
-from adaproj_edge.app.settings import AppSettings
+from adaproj_edge.commands._outputs import check_output_dir
 from adaproj_edge.resources import default_session
 
 log = logging.getLogger(__name__)
@@ -39,12 +38,29 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--no-cache", action="store_true", help="turn the per-pose warp cache off")
     p.add_argument("--no-warm-start", action="store_true", help="refine from scratch each time")
     p.add_argument("--no-score", action="store_true", help="skip the ground-truth scoring")
+    p.add_argument(
+        "--calibration",
+        default=None,
+        metavar="FILE.toml",
+        help="replay with this calibration instead of the session's (e.g. one solved by "
+        "`adaproj calibrate`)",
+    )
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.out is not None:
+        check_output_dir(args.out, "output folder")
+
+    from adaproj_edge.app.replay import ReplayOptions, replay_session
+    from adaproj_edge.app.settings import AppSettings
+    from adaproj_edge.geometry.calibration import Calibration
+
     settings = replace(AppSettings(), caching=not args.no_cache, warm_start=not args.no_warm_start)
-    options = ReplayOptions(settings, all_frames=args.all_frames, score=not args.no_score)
+    cal = Calibration.load(args.calibration) if args.calibration else None
+    options = ReplayOptions(
+        settings, all_frames=args.all_frames, score=not args.no_score, calibration=cal
+    )
     s = replay_session(args.session, args.out, options)
     c = s["counters"]
     print(

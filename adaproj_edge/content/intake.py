@@ -60,7 +60,9 @@ def read_content(
     video = is_video_name(Path(image).name)
     img = first_frame(Path(image)) if video else read_image(image)
     h, w = img.shape[:2]
-    return ContentFiles(img, None if mask is None else load_mask(mask, (w, h)), video)
+    if mask is None:
+        return ContentFiles(img, None, video)
+    return ContentFiles(img, load_mask(mask, (w, h), f"mask {Path(mask).name}"), video)
 
 
 def first_frame(path: Path) -> Image:

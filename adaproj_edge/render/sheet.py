@@ -43,3 +43,44 @@ def stack(rows: Sequence[Image]) -> Image:
     width = max(r.shape[1] for r in rows)
     padded = [np.pad(r, ((0, 6), (0, width - r.shape[1]), (0, 0))) for r in rows]
     return np.vstack(padded)
+
+
+def text_page(lines: Sequence[str], size: tuple[int, int], scale: float = 1.0) -> Image:
+    """Lines of white text on black, wrapped to the width, newest at the bottom.
+
+    Parameters
+    ----------
+    lines : sequence of str
+        Oldest first; those that do not fit are dropped from the top.
+    size : (int, int)
+        The page's width and height, pixels.
+    scale : float
+        Font scale (1.0: about 30 px high lines).
+
+    Returns
+    -------
+    Image
+        (height, width, 3) uint8, BGR.
+    """
+    w, h = size
+    page = np.zeros((h, w, 3), np.uint8)
+    font, thick = cv2.FONT_HERSHEY_SIMPLEX, max(1, round(2 * scale))
+    step = round(36 * scale)
+    margin = round(24 * scale)
+    wrapped: list[str] = []
+    for line in lines:
+        words = line.split() or [""]
+        cur = words[0]
+        for word in words[1:]:
+            wider = cur + " " + word
+            if cv2.getTextSize(wider, font, scale, thick)[0][0] > w - 2 * margin:
+                wrapped.append(cur)
+                cur = word
+            else:
+                cur = wider
+        wrapped.append(cur)
+    fit = max(1, (h - 2 * margin) // step)
+    for i, text in enumerate(wrapped[-fit:]):
+        y = margin + step * (i + 1) - round(8 * scale)
+        cv2.putText(page, text, (margin, y), font, scale, (255, 255, 255), thick, cv2.LINE_AA)
+    return page
