@@ -23,7 +23,8 @@ Warm starts (``PlanSettings.warm_start``)
 
 Video frames (``refine(..., frame_dt=dt)``)
     The saliency weights are graded, a warm start takes at most
-    ``PlanSettings.temporal.steps`` steps and the result goes through the planner's
+    ``PlanSettings.temporal.steps`` steps (none while the content map stands still)
+    and the result goes through the planner's
     :class:`~adaproj_edge.warp.temporal.WarpSmoother`, so the warp follows a moving
     subject smoothly and stands still on a still scene (:mod:`adaproj_edge.warp.temporal`).
 
@@ -235,6 +236,9 @@ class WarpPlanner:
         pose cache's tolerance of it). ``on_step`` is called after every step (a
         caller's stopwatch). ``frame_dt``: this is a video frame shown ``frame_dt``
         seconds after the last one (bounded warm steps, smoothed in time)."""
+        held = None if frame_dt is None else self.smoother.held(content_map, start)
+        if held is not None and frame_dt is not None:  # the content stands still: so
+            return self.smoother.smooth(held, start, frame_dt)  # does the warp
         fine = start.warp
         coarse = self.plan_settings.refine_factor > 1
         coarse_uv = fine.grid_uv[np.ix_(self.rows, self.cols)] if coarse else fine.grid_uv
@@ -244,6 +248,7 @@ class WarpPlanner:
             return self._refine(mesh, depth, content_map, settings, start, on_step)
         graded = GradedContentMap.of(content_map, self.plan_settings.temporal.band)
         warp = self._refine(mesh, depth, graded, settings, start, on_step, frame_dt)
+        self.smoother.refined(warp, content_map)
         return self.smoother.smooth(warp, start, frame_dt)
 
     def _refine(

@@ -11,7 +11,13 @@ every frame gets a content-aware refinement
   from 0 at ``C = T - band`` to 1 at ``C = T + band`` instead of jumping at ``T``;
 - **filtered in time** (:class:`WarpSmoother`): what is shown is the refined warp
   through a critically damped second-order low-pass filter (two equal exponential
-  stages) on the content coordinates of the grid's vertices.
+  stages) on the content coordinates of the grid's vertices;
+- **held while the content stands still**: when no value of the content map has moved
+  more than :attr:`TemporalWarpSettings.still_change` since the map the last
+  refinement ran on, the frame takes no step and the last refined warp is shown again
+  (through the filter). The alternation from a warm start does not stand still on an
+  unchanged map (measured: its vertices wander 1-13 content px per frame), so without
+  the hold a still scene would never give a still warp.
 
 Why: the content-aware energy of a still weighs a vertex as salient or not
 (``C >= T``), so as a subject moves, vertices enter and leave the salient set one at a
@@ -21,7 +27,7 @@ warp jerks with it. Graded weights make the optimum move continuously with the
 takes out what is left (a step becomes an S-shaped move without overshoot). A subject
 moving at a steady speed is followed with a lag of about ``2 * time_constant_s``
 (70 ms by default); a still scene settles to a warp that does not move at all (the
-filter converges geometrically to the refinement's fixed point).
+refinement is held, the filter converges geometrically to the held warp).
 
 The smoother starts again (no blending) when the refinement starts on another
 content-free warp (a new pose: the vertices then belong to another surface), when the
@@ -61,15 +67,21 @@ class TemporalWarpSettings:
     time_constant_s : float
         Time constant of each of the filter's two stages (s). 0.035 s moves each stage
         61 % of the way per frame at 30 fps.
+    still_change : float
+        A frame whose content map differs from the last refined one by at most this
+        much everywhere takes no step (the warp is held; 0: always refine).
     """
 
     steps: int = 2
     band: float = 0.1
     time_constant_s: float = 0.035
+    still_change: float = 0.01
 
     def __post_init__(self) -> None:
         if self.steps < 1 or not 0.0 <= self.band < 0.5 or not self.time_constant_s >= 0.0:
             raise ValueError("need steps >= 1, 0 <= band < 0.5 and time_constant_s >= 0")
+        if not self.still_change >= 0.0:
+            raise ValueError("need still_change >= 0")
 
     def gain(self, dt: float) -> float:
         """The fraction of the way to its input each stage moves in ``dt`` seconds
@@ -120,13 +132,40 @@ class WarpSmoother:
         self._source: object | None = None
         self._first: FloatArray | None = None  # the first stage's state (R, C, 2)
         self._out: FloatArray | None = None  # the second stage's: what is shown
+        self._refined: Warp | None = None  # the last refinement's warp
+        self._refined_map: NDArray[np.float32] | None = None  # and the map it ran on
         self.resets = 0
+        self.holds = 0
 
     def reset(self) -> None:
         """Forget the past: the next warp is shown as it comes."""
         self._source = None
         self._first = None
         self._out = None
+        self._refined = None
+        self._refined_map = None
+
+    def held(self, content_map: ContentMap, source: object) -> Warp | None:
+        """The last refined warp, when ``content_map`` has not moved from the map it
+        was refined on by more than ``still_change`` anywhere and ``source`` (the
+        content-free warp) is the same; None when this frame needs a refinement.
+
+        The returned warp's ``meta`` says ``iterations`` 0 and ``held`` True.
+        """
+        last, values = self._refined, self._refined_map
+        limit = self.settings.still_change
+        if last is None or values is None or source is not self._source or limit <= 0.0:
+            return None
+        now = content_map.values
+        if now.shape != values.shape or float(np.max(np.abs(now - values))) > limit:
+            return None
+        self.holds += 1
+        return replace(last, meta={**last.meta, "iterations": 0, "held": True})
+
+    def refined(self, warp: Warp, content_map: ContentMap) -> None:
+        """Keep ``warp``, this frame's refinement of ``content_map``, for :meth:`held`."""
+        self._refined = warp
+        self._refined_map = np.array(content_map.values, np.float32)
 
     @property
     def active(self) -> bool:

@@ -188,6 +188,12 @@ def test_video_frames_take_the_bounded_steps_from_a_warm_start() -> None:
     moved = TemporalContentMap(SIZE, SaliencyModel()).update(subject_frame(8, SIZE)[0])
     second = device.refine(surface, moved, SETTINGS, cf, frame_dt=1 / FPS)
     assert second.meta["iterations"] == 1 and second.meta["smoothed"]
+    # the same map again: no step, the refined warp held (the filter still converges)
+    still = device.refine(surface, moved, SETTINGS, cf, frame_dt=1 / FPS)
+    assert still.meta["iterations"] == 0 and still.meta["held"]
+    assert device.smoother.holds == 1
+    nudged = replace(moved, values=np.clip(moved.values + 0.02, 0, 1))
+    assert device.refine(surface, nudged, SETTINGS, cf, frame_dt=1 / FPS).meta["iterations"] == 1
     device.forget()  # no past: cold again, shown as solved
     again = device.refine(surface, moved, SETTINGS, cf, frame_dt=1 / FPS)
     assert again.meta["iterations"] > 1 and not again.meta["smoothed"]
