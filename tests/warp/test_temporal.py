@@ -9,7 +9,7 @@ same content map of each frame: the fixed content-free warp (the paper's way for
 video) and an independent full-grid solve of the frame (``compute_warp``).
 
 The issue asks for the subject's size inconsistency within 1.3x of an independent full
-solve on every frame. Measured (45 frames, 180 px/s): 1.18x on average, 1.49x at worst
+solve on every frame. Measured (45 frames, 180 px/s): 1.17x on average, 1.49x at worst
 (frame 19); the per-frame worst case is set by the independent solves' own jitter
 (0.0009-0.0018 from one frame to the next, where the shown warp stays within
 0.0011-0.0016), and a cold solve by the device's coarse-to-fine planner of the same
