@@ -49,14 +49,15 @@ def test_frames_json_has_one_object_per_frame_as_specified(rendered: Path) -> No
         assert vertices and all(len(v) == 2 for v in vertices)
         # content pixels: vertices beyond the content's edges map outside it
         assert all(-160 < v[0] < 320 and -96 < v[1] < 192 for v in vertices)
-        assert r["iterations"] >= 1
+        assert r["iterations"] >= 0  # 0: held (the content map did not move)
         assert set(r["stage_ms"]) == {"decode", "content", "refine", "maps", "render"}
         assert all(ms >= 0 for ms in r["stage_ms"].values())
         for key in ("distortion", "content_free_distortion"):
             assert set(r[key]) == MEASURES
             assert r[key]["angle"] >= 0 and r[key]["size"] >= 0
-    # the first frame is solved cold, the later ones take the bounded warm steps
-    assert records[0]["iterations"] > records[-1]["iterations"]
+    # the first frame is solved cold, the later ones take the bounded warm steps (2)
+    assert records[0]["iterations"] > 2
+    assert all(r["iterations"] <= 2 for r in records[1:])
     # the same content-free warp measured on every frame over the whole content
     free = {r["content_free_distortion"]["size"] for r in records}
     assert len(free) == 1
