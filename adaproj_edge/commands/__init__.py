@@ -30,6 +30,7 @@ MODULES: tuple[str, ...] = (
     "surface",
     "run",
     "replay",
+    "video",
     "calibrate",
 )
 

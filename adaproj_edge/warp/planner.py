@@ -21,6 +21,13 @@ Warm starts (``PlanSettings.warm_start``)
     The planner keeps its last coarse solution; the next refinement of (nearly) the
     same surface starts from it and takes at most ``warm_iterations`` steps.
 
+Video frames (``refine(..., frame_dt=dt)``)
+    The saliency weights are graded, a warm start takes at most
+    ``PlanSettings.temporal.steps`` steps (none while the content map stands still)
+    and the result goes through the planner's
+    :class:`~adaproj_edge.warp.temporal.WarpSmoother`, so the warp follows a moving
+    subject smoothly and stands still on a still scene (:mod:`adaproj_edge.warp.temporal`).
+
 :func:`compute_warp` is the one-shot call (the CLI, the renderer, the replay's
 ground truth): a planner with the full-grid refinement and no state kept.
 
@@ -31,7 +38,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,6 +62,7 @@ from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
 from adaproj_edge.warp.orientation import fold_count
 from adaproj_edge.warp.placement import Placement, place
 from adaproj_edge.warp.posecache import surfaces_match
+from adaproj_edge.warp.temporal import GradedContentMap, TemporalWarpSettings, WarpSmoother
 from adaproj_edge.warp.warpmap import Grid, Warp
 
 log = logging.getLogger(__name__)
@@ -108,12 +116,16 @@ class PlanSettings:
     warm_rel : float
     warm_iterations : int
         At most this many steps from a warm start.
+    temporal : TemporalWarpSettings
+        Steps per video frame and the smoothing in time (refinements with
+        ``frame_dt``).
     """
 
     refine_factor: int = 1
     warm_start: bool = False
     warm_rel: float = 0.01
     warm_iterations: int = 4
+    temporal: TemporalWarpSettings = field(default_factory=TemporalWarpSettings)
 
 
 @dataclass(frozen=True)
@@ -166,10 +178,12 @@ class WarpPlanner:
         self.cols = coarse_indices(self.grid.cols, p.refine_factor)
         self.coarse_grid = Grid(cols=self.cols.size - 1, rows=self.rows.size - 1)
         self._last: _Solution | None = None
+        self.smoother = WarpSmoother(p.temporal)
 
     def forget(self) -> None:
-        """Drop the solution kept for warm starts."""
+        """Drop the solution kept for warm starts and the video frames' past."""
         self._last = None
+        self.smoother.reset()
 
     # ------------------------------------------------------------------ steps
     def standard(self, content_size: tuple[int, int]) -> Warp:
@@ -215,16 +229,27 @@ class WarpPlanner:
         settings: WarpSettings,
         start: ContentFreeWarp,
         on_step: StepHook | None = None,
+        frame_dt: float | None = None,
     ) -> Warp:
         """Step 2: the content-aware alternation on the (coarse) grid, combined with
         the fine content-free warp ``start`` (made for this surface, or one within a
         pose cache's tolerance of it). ``on_step`` is called after every step (a
-        caller's stopwatch)."""
+        caller's stopwatch). ``frame_dt``: this is a video frame shown ``frame_dt``
+        seconds after the last one (bounded warm steps, smoothed in time)."""
+        held = None if frame_dt is None else self.smoother.held(content_map, start)
+        if held is not None and frame_dt is not None:  # the content stands still: so
+            return self.smoother.smooth(held, start, frame_dt)  # does the warp
         fine = start.warp
         coarse = self.plan_settings.refine_factor > 1
         coarse_uv = fine.grid_uv[np.ix_(self.rows, self.cols)] if coarse else fine.grid_uv
         mesh = MeshGeometry.build(surface, self.coarse_grid, self.cache, coarse_uv)
-        return self._refine(mesh, _surface_depth(surface), content_map, settings, start, on_step)
+        depth = _surface_depth(surface)
+        if frame_dt is None:
+            return self._refine(mesh, depth, content_map, settings, start, on_step)
+        graded = GradedContentMap.of(content_map, self.plan_settings.temporal.band)
+        warp = self._refine(mesh, depth, graded, settings, start, on_step, frame_dt)
+        self.smoother.refined(warp, content_map)
+        return self.smoother.smooth(warp, start, frame_dt)
 
     def _refine(
         self,
@@ -234,9 +259,10 @@ class WarpPlanner:
         settings: WarpSettings,
         start: ContentFreeWarp,
         on_step: StepHook | None = None,
+        frame_dt: float | None = None,
     ) -> Warp:
-        """:meth:`refine` on the refinement grid's ``mesh`` of the surface of lattice
-        ``depth``."""
+        """:meth:`refine` (before any smoothing) on the refinement grid's ``mesh`` of
+        the surface of lattice ``depth``."""
         fine = start.warp
         factor = self.plan_settings.refine_factor
         coarse_settings = replace(settings, grid=self.coarse_grid)
@@ -244,9 +270,10 @@ class WarpPlanner:
         to_fine = (self.rows[:, None] * fine_cols + self.cols[None, :]).ravel()
         v, placement, warm = self._start(mesh, start, to_fine, depth, content_map, settings)
         if warm:
+            p = self.plan_settings
+            steps = p.warm_iterations if frame_dt is None else p.temporal.steps
             coarse_settings = replace(
-                coarse_settings,
-                max_iterations=min(settings.max_iterations, self.plan_settings.warm_iterations),
+                coarse_settings, max_iterations=min(settings.max_iterations, steps)
             )
         if settings.alternation == "paper":
             v_conf = self._on_mesh(start.v_conformal, start, to_fine, mesh.verts)

@@ -27,6 +27,32 @@ def frame(i: int, size: tuple[int, int] = (160, 96), speed: float = 4.0) -> NDAr
     return np.asarray(img, np.uint8)
 
 
+SUBJECT_AXES = (0.11, 0.28)
+"""Half-axes of the moving subject, as fractions of the frame's width and height."""
+
+
+def subject_frame(
+    i: int, size: tuple[int, int] = (640, 360), speed: float = 6.0, start: float = 0.2
+) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
+    """Frame ``i`` of a clip with a subject moving across a textured background, and
+    the subject's true mask (h, w).
+
+    The background is fixed blurred noise; the subject an orange ellipse (half-axes
+    :data:`SUBJECT_AXES`) whose centre starts at ``start`` of the width, halfway down,
+    and moves right ``speed`` px a frame (0: a still scene).
+    """
+    w, h = size
+    rng = np.random.default_rng(3)
+    img = cv2.GaussianBlur(rng.integers(60, 160, (h, w, 3), dtype=np.uint8), (0, 0), 3)
+    cx, cy = start * w + speed * i, 0.5 * h
+    ax, ay = SUBJECT_AXES[0] * w, SUBJECT_AXES[1] * h
+    centre, axes = (round(cx * 16), round(cy * 16)), (round(ax * 16), round(ay * 16))
+    cv2.ellipse(img, centre, axes, 0, 0, 360, (0, 200, 255), -1, cv2.LINE_AA, shift=4)
+    yy, xx = np.mgrid[0:h, 0:w]
+    mask = ((xx - cx) / ax) ** 2 + ((yy - cy) / ay) ** 2 <= 1.0
+    return np.asarray(img, np.uint8), np.asarray(mask)
+
+
 def write_clip(
     path: Path,
     fourcc: str = "MJPG",

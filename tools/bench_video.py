@@ -1,0 +1,216 @@
+#!/usr/bin/env python3
+"""Content-aware video on one core: frames per second, stage times, late frames.
+
+Makes a 1280x720 clip with OpenCV's own writer (MPEG-4 Part 2, ``mp4v`` in .mp4: the
+OpenCV wheels decode H.264 but cannot encode it), a subject moving across a textured
+background (``tests/content/clips.py``), and plays it onto a surface (default: the
+concave sphere) at the device's grid, one thread, three ways, in the same run:
+
+- **content-aware** (ours, as the device and ``adaproj video`` play it:
+  :class:`~adaproj_edge.render.clipplayer.ClipPlayer`): decode, content map, warm
+  refinement filtered in time, maps, render;
+- **content-free** (the paper's way for video, §5.4): decode and render through the
+  fixed content-free warp's maps (made once);
+- **independent**: decode, content map, a full cold solve of every frame
+  (``compute_warp``), maps, render (``--independent-frames`` frames: it is slow).
+
+For each: sustained fps (frames / total time, stages one after the other on one core),
+each stage's median and p95 (ms), and late frames (% of frames whose stages together
+took longer than the clip's frame period). Ratios are against the content-free way,
+measured in the same run; the load average is printed (the machine is shared).
+
+    .venv/bin/python tools/bench_video.py [--frames 150] [--independent-frames 20]
+        [--surface sphere-concave] [--size 1280x720] [--fps 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # for tests.content.clips (the moving subject)
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from adaproj_edge.app.settings import AppSettings  # noqa: E402
+from adaproj_edge.content.clip import ClipFrames  # noqa: E402
+from adaproj_edge.content.model import SaliencyModel  # noqa: E402
+from adaproj_edge.content.temporal import TemporalContentMap  # noqa: E402
+from adaproj_edge.content.video import check_video  # noqa: E402
+from adaproj_edge.geometry.analytic import simulate_surface  # noqa: E402
+from adaproj_edge.geometry.surface import Surface  # noqa: E402
+from adaproj_edge.render.clipplayer import STAGES, ClipPlayer  # noqa: E402
+from adaproj_edge.render.display_maps import DisplayMapBuilder  # noqa: E402
+from adaproj_edge.render.frame import render_frame  # noqa: E402
+from adaproj_edge.threads import apply_thread_policy  # noqa: E402
+from adaproj_edge.warp.engine import WarpSettings  # noqa: E402
+from adaproj_edge.warp.mesh import WarpCache  # noqa: E402
+from adaproj_edge.warp.planner import PlanSettings, WarpPlanner, compute_warp  # noqa: E402
+from tests.content.clips import subject_frame  # noqa: E402
+
+Times = dict[str, list[float]]
+
+
+def make_clip(path: Path, n: int, size: tuple[int, int], fps: float) -> Path:
+    """``n`` frames of the moving subject, mp4v, at ``size`` and ``fps``."""
+    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter.fourcc(*"mp4v"), fps, size)
+    if not writer.isOpened():
+        raise SystemExit("OpenCV cannot write mp4v here")
+    speed = 0.6 * size[0] / n  # across 60 % of the width over the clip
+    for i in range(n):
+        writer.write(subject_frame(i, size, speed, start=0.2)[0])
+    writer.release()
+    return path
+
+
+class Rig:
+    """The device's planner, display maps and content maps for one clip."""
+
+    def __init__(self, clip: Path, surface: Surface) -> None:
+        s = AppSettings()
+        self.info = check_video(clip)
+        self.size = (self.info.width, self.info.height)
+        self.settings = WarpSettings(
+            mode="content", grid=s.grid, max_iterations=s.refine_iterations
+        )
+        plan = PlanSettings(refine_factor=s.refine_factor, warm_start=True)
+        self.planner = WarpPlanner(surface.projector, s.grid, plan, WarpCache())
+        p = surface.projector
+        self.display = DisplayMapBuilder(p, s.grid.vertices(p), s.map_scale)
+        maps = TemporalContentMap(self.size, SaliencyModel(), grid=(s.grid.rows, s.grid.cols))
+        self.clip = ClipFrames(clip, maps, self.info)
+        self.surface = surface
+
+
+def content_aware(clip: Path, surface: Surface, n: int) -> Times:
+    rig = Rig(clip, surface)
+    player = ClipPlayer(
+        rig.clip, surface, rig.planner, rig.display, rig.settings, time.perf_counter
+    )
+    fps = rig.info.fps
+    times: Times = {k: [] for k in STAGES}
+    for i in range(n):
+        played = player.play(i / fps, 1 / fps)
+        for k, v in played.stage_ms.items():
+            times[k].append(v)
+    rig.clip.close()
+    return times
+
+
+def content_free(clip: Path, surface: Surface, n: int) -> Times:
+    rig = Rig(clip, surface)
+    cf = rig.planner.content_free(surface, rig.size, rig.settings)
+    maps = rig.display.maps(cf.warp)
+    fps = rig.info.fps
+    times: Times = {"decode": [], "render": []}
+    out = None
+    for i in range(n):
+        t0 = time.perf_counter()
+        f = rig.clip.frame(i / fps)
+        t1 = time.perf_counter()
+        assert f.image is not None
+        out = render_frame(f.image, maps, out)
+        t2 = time.perf_counter()
+        times["decode"].append(1000 * (t1 - t0))
+        times["render"].append(1000 * (t2 - t1))
+    rig.clip.close()
+    return times
+
+
+def independent(clip: Path, surface: Surface, n: int) -> Times:
+    rig = Rig(clip, surface)
+    fps = rig.info.fps
+    times: Times = {k: [] for k in STAGES}
+    out = None
+    for i in range(n):
+        lap = Lap(times)
+        f = rig.clip.frame(i / fps)
+        lap("decode")
+        cmap = rig.clip.content_map(f)
+        lap("content")
+        warp = compute_warp(surface, rig.size, cmap, rig.settings)
+        lap("refine")
+        maps = rig.display.maps(warp)
+        lap("maps")
+        assert f.image is not None
+        out = render_frame(f.image, maps, out)
+        lap("render")
+    rig.clip.close()
+    return times
+
+
+class Lap:
+    """Adds the time since the last lap to ``times[stage]`` (ms)."""
+
+    def __init__(self, times: Times, clock: Callable[[], float] = time.perf_counter) -> None:
+        self.times, self.clock, self.mark = times, clock, clock()
+
+    def __call__(self, stage: str) -> None:
+        now = self.clock()
+        self.times[stage].append(1000 * (now - self.mark))
+        self.mark = now
+
+
+def p95(xs: list[float]) -> float:
+    return float(np.percentile(xs, 95))
+
+
+def report(name: str, times: Times, period_ms: float, base_fps: float | None) -> float:
+    totals = np.sum([times[k] for k in times], axis=0)
+    fps = 1000.0 * len(totals) / float(np.sum(totals))
+    late = 100.0 * float(np.mean(totals > period_ms))
+    ratio = "" if base_fps is None else f"  {fps / base_fps:.2f}x the content-free fps"
+    print(f"\n{name}: {len(totals)} frames, {fps:.1f} fps on one core, {late:.1f} % late{ratio}")
+    stages = ", ".join(f"{k} {statistics.median(v):.1f}/{p95(v):.1f}" for k, v in times.items())
+    print(f"  stage median/p95 ms: {stages}")
+    print(f"  frame median/p95 ms: {statistics.median(totals):.1f}/{p95(list(totals)):.1f}")
+    return fps
+
+
+def main() -> None:
+    apply_thread_policy(1)  # one thread: the figures are per core
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--frames", type=int, default=150)
+    ap.add_argument("--independent-frames", type=int, default=20)
+    ap.add_argument("--surface", default="sphere-concave")
+    ap.add_argument("--size", default="1280x720")
+    ap.add_argument("--fps", type=float, default=30.0)
+    args = ap.parse_args()
+    w, h = (int(x) for x in args.size.split("x"))
+    surface = simulate_surface(args.surface)
+    with tempfile.TemporaryDirectory() as d:
+        clip = make_clip(Path(d) / "clip.mp4", args.frames, (w, h), args.fps)
+        print(
+            f"clip {w}x{h} mp4v (OpenCV's writer), {args.frames} frames at {args.fps:g} fps; "
+            f"surface {args.surface}, grid {AppSettings().grid}, one thread; "
+            f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}"
+        )
+        period = 1000.0 / args.fps
+        content_aware(clip, surface, min(10, args.frames))  # load code and libraries
+        free = report(
+            "content-free (the paper's way)", content_free(clip, surface, args.frames), period, None
+        )
+        ours = content_aware(clip, surface, args.frames)
+        ours_fps = report("content-aware (ours)", ours, period, free)
+        n = min(args.independent_frames, args.frames)
+        indep = report("independent full solves", independent(clip, surface, n), period, free)
+        print(f"\nours / independent: {ours_fps / indep:.1f}x the fps")
+        medians = {k: statistics.median(v) for k, v in ours.items()}
+        slowest = max(medians, key=lambda k: medians[k])
+        print(
+            f"pipelined on separate cores, one stage per core: bounded by {slowest} "
+            f"({medians[slowest]:.1f} ms median) -> {1000 / medians[slowest]:.0f} fps"
+        )
+        print(f"load average at the end {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()
