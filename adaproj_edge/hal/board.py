@@ -8,7 +8,7 @@ Format::
     chip = "lsm6dsox"
     bus = 1                # /dev/i2c-1
     address = 0x6A
-    rate_hz = 208.0
+    rate_hz = 416.0
     accel_range_g = 4
     gyro_range_dps = 500
     [button]
