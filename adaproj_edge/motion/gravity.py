@@ -39,7 +39,7 @@ class GravitySettings:
     """
 
     tau_s: float = 1.0
-    max_deviation: float = 1.0
+    max_deviation: float = 0.5
     max_rate: float = 0.5
     settle_s: float = 0.5
 
@@ -58,8 +58,9 @@ class GravityFilter:
         self._last_ns: int | None = None
         self._used_s = 0.0
 
-    def update(self, t_ns: int, accel: FloatArray, rate: FloatArray) -> None:
-        """One sample: specific force (3,) m/s^2 and angular rate (3,) rad/s, frame P."""
+    def update(self, t_ns: int, accel: FloatArray, rate: FloatArray, still: bool = True) -> None:
+        """One sample: specific force (3,) m/s^2 and angular rate (3,) rad/s, frame P;
+        ``still``: whether the device is held still (only then is gravity measured)."""
         s = self.settings
         a = np.asarray(accel, dtype=np.float64)
         w = np.asarray(rate, dtype=np.float64)
@@ -75,10 +76,12 @@ class GravityFilter:
             return
         meas = a / norm
         if self._up is None:
-            self._up = meas
+            self._up = meas  # a first guess, moving or not
+            return
+        if not still:
             return
         self._used_s += dt
-        k = min(1.0, dt / s.tau_s)
+        k = min(1.0, dt / min(max(self._used_s, dt), s.tau_s))
         up = self._up + k * (meas - self._up)
         self._up = up / np.linalg.norm(up)
 

@@ -29,9 +29,9 @@ frame). ``margin = 0`` turns stabilisation off (``C`` is the identity).
 
 Gyro bias
 ---------
-A gyro's zero-rate offset integrates into a steady turn. While the device is held still
-(low-passed rate under ``still_rate``) the rate is averaged with time constant
-``bias_tau_s`` into the bias the integration removes; tremor and sway average out.
+A gyro's zero-rate offset integrates into a steady turn: it is learnt while the device
+is held still (:class:`~adaproj_edge.motion.rates.GyroBias`) and removed before
+integration.
 """
 
 from __future__ import annotations
@@ -44,6 +44,7 @@ import numpy as np
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.rotations import rotation_matrix, rotation_vector
 from adaproj_edge.motion.prediction import GyroTrack, PredictionSettings
+from adaproj_edge.motion.rates import GyroBias, LowPass2
 from adaproj_edge.render.reproject import margin_usage
 
 
@@ -66,9 +67,7 @@ class StabiliserSettings:
     usage_tau_s : float
         Low-pass of the margin's use that decides the pull (tremor taken out).
     bias_tau_s, still_rate, still_hold_s, max_bias : float
-        Gyro bias averaging; it learns once the low-passed raw rate (bias included,
-        so a wrong estimate cannot shut it out) has stayed under ``still_rate`` for
-        ``still_hold_s``; the estimate is kept within ``max_bias`` per axis.
+        The gyro bias's learning (:class:`~adaproj_edge.motion.rates.GyroBias`).
     prediction : PredictionSettings
     """
 
@@ -130,12 +129,8 @@ class Stabiliser:
         self.K = np.asarray(K, dtype=np.float64)
         self.size = size
         self.track = GyroTrack(s.prediction)
-        self._v1 = np.zeros(3)
-        self._v2 = np.zeros(3)
-        self._r1 = np.zeros(3)
-        self._r2 = np.zeros(3)
-        self._bias_weight = 0.0
-        self._still_s = 0.0
+        self._deliberate = LowPass2(s.speed_tau_s)
+        self._bias = GyroBias(s.bias_tau_s, s.still_rate, s.still_hold_s, s.max_bias, s.speed_tau_s)
         self.R_s: FloatArray | None = None
         self._last_step_ns: int | None = None
         self._usage = 0.0
@@ -149,34 +144,26 @@ class Stabiliser:
         if not self.track.add(t_ns, w):
             return
         if last is None or t_ns - last > s.prediction.max_gap_s * 1e9:
+            self._bias.reset_stillness()
             return
         dt = (t_ns - last) * 1e-9
-        k = dt / s.speed_tau_s
-        self._v1 += (w - self.track.bias - self._v1) * k
-        self._v2 += (self._v1 - self._v2) * k
-        self._r1 += (w - self._r1) * k
-        self._r2 += (self._r1 - self._r2) * k
-        raw = float(np.linalg.norm(self._r2))
-        self._still_s = self._still_s + dt if raw < s.still_rate else 0.0
-        if self._still_s >= s.still_hold_s:
-            # the weight grows from 0 so the first still second already counts
-            self._bias_weight = min(self._bias_weight + dt, s.bias_tau_s)
-            b = self.track.bias + (w - self.track.bias) * (dt / self._bias_weight)
-            self.track.bias = np.clip(b, -s.max_bias, s.max_bias)
+        self._deliberate.update(w - self.track.bias, dt)
+        self._bias.update(w, dt)
+        self.track.bias = self._bias.value.copy()
 
     def reset(self) -> None:
         """Start afresh (after an IMU fault): no correction until samples come again."""
         self.track.reset()
         self.R_s = None
         self._last_step_ns = None
-        for v in (self._v1, self._v2, self._r1, self._r2):
-            v[:] = 0.0
+        self._deliberate.reset()
+        self._bias.reset_stillness()
         self._usage = 0.0
 
     @property
     def deliberate_rate(self) -> float:
         """The low-passed turning rate (rad/s), tremor taken out."""
-        return float(np.linalg.norm(self._v2))
+        return float(np.linalg.norm(self._deliberate.value))
 
     @property
     def bias(self) -> FloatArray:

@@ -14,6 +14,7 @@ OpenCV's vectorised path is about twice as fast as on 3-channel ones
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Literal
 
 import cv2
@@ -21,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
+from adaproj_edge.warp.warpmap import Warp
 
 Interpolation = Literal["linear", "nearest"]
 _FLAGS = {"linear": cv2.INTER_LINEAR, "nearest": cv2.INTER_NEAREST}
@@ -80,6 +82,28 @@ def reproject(
     return np.asarray(got, dtype=np.uint8)
 
 
+def rotation_between(K: FloatArray, u_from: FloatArray, u_to: FloatArray) -> FloatArray:
+    """The rotation ``M`` (3, 3) that best turns the rays of pixels ``u_from`` (N, 2)
+    onto those of ``u_to`` (N, 2) (least squares on unit rays, Kabsch); pixels ``u_to``
+    are then shown at about ``K M K^-1 u_from``. Rows with NaN are left out; fewer than
+    three points give the identity."""
+    K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
+    ok = np.all(np.isfinite(u_from), axis=1) & np.all(np.isfinite(u_to), axis=1)
+    if int(ok.sum()) < 3:
+        return np.eye(3)
+
+    def rays(u: FloatArray) -> FloatArray:
+        r = np.concatenate([u[ok], np.ones((int(ok.sum()), 1))], axis=1) @ K_inv.T
+        out: FloatArray = r / np.linalg.norm(r, axis=1, keepdims=True)
+        return out
+
+    a, b = rays(u_from), rays(u_to)
+    U, _, Vt = np.linalg.svd(b.T @ a)
+    d = np.sign(np.linalg.det(U @ Vt))
+    M: FloatArray = U @ np.diag([1.0, 1.0, d]) @ Vt
+    return M
+
+
 def inner_corners(size: tuple[int, int], margin: float) -> FloatArray:
     """The corners (4, 2) of the frame ``size`` (w, h) inset by ``margin`` of its width
     and height on each side (pixel centres at integers)."""
@@ -101,3 +125,21 @@ def margin_usage(K: FloatArray, C: FloatArray, size: tuple[int, int], margin: fl
     if margin <= 0:
         return 0.0 if float(d.max()) < 1e-9 else float("inf")
     return float(max(d[:, 0].max() / (margin * w), d[:, 1].max() / (margin * h)))
+
+
+def inset_warp(warp: Warp, margin: float) -> Warp:
+    """``warp`` with its content shrunk about the content's centre by ``1 - 2 margin``:
+    a content that filled the frame keeps ``margin`` of its width and height free on
+    each side (room for the stabiliser). A similarity in content space: the warp's
+    distortion does not change. ``margin`` 0 returns ``warp`` itself."""
+    if margin <= 0:
+        return warp
+    if margin >= 0.25:
+        raise ValueError(f"a stabilisation margin of {margin} leaves too little picture")
+    w, h = warp.content_size
+    c = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
+    k = 1.0 / (1.0 - 2.0 * margin)
+    map_xy = None
+    if warp.map_xy is not None:
+        map_xy = (c + (warp.map_xy - c) * k).astype(np.float32)
+    return replace(warp, image_xy=c + (warp.image_xy - c) * k, map_xy=map_xy)

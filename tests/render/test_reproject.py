@@ -12,6 +12,7 @@ from adaproj_edge.render.reproject import (
     map_points,
     margin_usage,
     reproject,
+    rotation_between,
     rotation_homography,
 )
 
@@ -55,3 +56,15 @@ def test_margin_usage_is_zero_still_and_one_at_the_edge() -> None:
     assert margin_usage(PROJ.K, rotation_matrix(np.array([0.0, 0.01, 0.0])), size, 0.0) == np.inf
     c = inner_corners(size, 0.04)
     assert np.allclose(c[0], [0.04 * 1280 - 0.5, 0.04 * 800 - 0.5])
+
+
+def test_rotation_between_recovers_a_rotation_of_pixels() -> None:
+    rng = np.random.default_rng(4)
+    u = rng.uniform([0, 0], [PROJ.width, PROJ.height], size=(20, 2))
+    M = rotation_matrix(np.array([0.002, -0.004, 0.01]))
+    moved = map_points(PROJ.K @ M @ np.linalg.inv(PROJ.K), u)
+    got = rotation_between(PROJ.K, u, moved)
+    assert np.allclose(got, M, atol=1e-9)
+    u[3] = np.nan
+    assert np.allclose(rotation_between(PROJ.K, u, moved), M, atol=1e-9)
+    assert np.array_equal(rotation_between(PROJ.K, u[:2], moved[:2]), np.eye(3))
