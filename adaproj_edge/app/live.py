@@ -1,5 +1,10 @@
 """The runtime on the board: one reader thread per device feeding one queue, the
-runtime on the main thread, the SMP server on a thread of its own.
+runtime on the main thread, the SMP server on a thread of its own, and the display
+thread (:func:`~adaproj_edge.app.display_loop.run_display`), which owns the projector:
+it waits for each refresh and shows the last frame the runtime rendered, stabilised
+with the gyro. The IMU's reader hands every sample to the display loop directly (the
+runtime's queue would hold it back while a depth frame is processed) as well as to
+the queue.
 
 A device that fails is reported to the runtime (status mark) and opened again every
 ``retry_s``; the projector keeps the last good frame meanwhile.
@@ -15,10 +20,11 @@ import logging
 import queue
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from adaproj_edge.app.content import builtin_item
+from adaproj_edge.app.display_loop import run_display
 from adaproj_edge.app.inputs import RECORDED, Input, SourceFault, feed
 from adaproj_edge.app.memory import pin_mmap_threshold
 from adaproj_edge.app.runtime import Runtime
@@ -75,7 +81,9 @@ def _pump(
 @dataclass
 class Device:
     """What :func:`run_loop` runs: the runtime, the link (server and port, ``None``
-    without a link), the input sources, and optionally a session being recorded."""
+    without a link), the input sources, optionally a session being recorded, and
+    whether a display thread shows the runtime's frames at each refresh (otherwise the
+    runtime shows each frame as it renders it)."""
 
     runtime: Runtime
     server: Server
@@ -83,6 +91,7 @@ class Device:
     sources: list[_Source]
     clock: Clock
     tap: SessionTap | None = None
+    refresh: bool = False
 
 
 def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float = 1.0) -> None:
@@ -100,6 +109,15 @@ def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float
         )
         for src in device.sources
     ]
+    if device.refresh:
+        threads.append(
+            threading.Thread(
+                target=run_display,
+                args=(runtime.screen, device.clock, stop),
+                daemon=True,
+                name="display",
+            )
+        )
     link = None
     if device.port is not None:
         port = tap.port(device.port) if tap is not None else device.port
@@ -131,6 +149,14 @@ def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float
             log.info("recorded %d records to %s", n, tap.writer.path)
 
 
+def board_settings(board: Board, settings: AppSettings) -> AppSettings:
+    """``settings`` with the board's display: refresh rate and stabilisation margin."""
+    d = settings.display
+    stabiliser = replace(d.stabiliser, margin=board.display.stabilise_margin)
+    display = replace(d, refresh_hz=board.display.refresh_hz, stabiliser=stabiliser)
+    return replace(settings, display=display)
+
+
 def run_device(
     board: Board,
     store_dir: Path,
@@ -144,8 +170,12 @@ def run_device(
     pin_mmap_threshold()
     clock = MonotonicClock()
     calibration = board.calibration()
-    display = FramebufferDisplay(board.display_device)
+    settings = board_settings(board, settings or AppSettings())
+    display = FramebufferDisplay(
+        board.display.device, clock=clock, refresh_hz=board.display.refresh_hz
+    )
     runtime = Runtime(calibration, display, clock, [builtin_item()], settings, state_dir=state_dir)
+    runtime.imu_direct = True  # the IMU's reader feeds the display loop itself
 
     def open_imu() -> Reader:
         bus = open_i2c(board.imu.bus)
@@ -154,8 +184,10 @@ def run_device(
 
         def read() -> ImuSample | None:
             s = imu.read()
-            if s is None:
-                clock.sleep_until(clock.now_ns() + int(0.5e9 / board.imu.config.rate_hz))
+            if s is None:  # the FIFO is empty: about a sample's time until the next
+                clock.sleep_until(clock.now_ns() + int(1e9 / board.imu.config.rate_hz))
+            else:
+                runtime.screen.on_imu(s)
             return s
 
         return read
@@ -185,6 +217,6 @@ def run_device(
             meta = {"source": "device", "board": board.name, "command": "run"}
             tap = SessionTap(SessionWriter(record, calibration, meta, clock.now_ns()), clock)
             log.info("recording to %s", record)
-        run_loop(Device(runtime, server, port, sources, clock, tap), retry_s=retry_s)
+        run_loop(Device(runtime, server, port, sources, clock, tap, refresh=True), retry_s=retry_s)
     finally:
         display.close()
