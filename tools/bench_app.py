@@ -23,12 +23,8 @@ Targets on one core: content-aware update <= 33 ms p95 at the default grid, cach
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-
 import argparse
+import os
 import sys
 import tempfile
 import time
@@ -36,7 +32,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -53,6 +48,7 @@ from adaproj_edge.session.simulator import (  # noqa: E402
     simulate_session,
     true_surface,
 )
+from adaproj_edge.threads import apply_thread_policy  # noqa: E402
 from adaproj_edge.warp.engine import WarpSettings  # noqa: E402
 from adaproj_edge.warp.planner import WarpPlanner  # noqa: E402
 from adaproj_edge.warp.posecache import PoseCache  # noqa: E402
@@ -118,6 +114,7 @@ def cache_hit_cost(repeats: int = 2000) -> tuple[float, float]:
 
 
 def main() -> int:
+    apply_thread_policy(1)  # one thread: the figures are per core
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -126,7 +123,6 @@ def main() -> int:
     ap.add_argument("--scene", default="cylinder-convex", help="surface of the simulated session")
     ap.add_argument("--repeat", type=int, default=2, help="runs of each (best one reported)")
     args = ap.parse_args()
-    cv2.setNumThreads(1)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     with tempfile.TemporaryDirectory() as tmp:

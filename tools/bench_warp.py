@@ -14,24 +14,20 @@ describes). Prints the times and their ratios; both run on one core.
 
 from __future__ import annotations
 
-import os
+import argparse
+import statistics
+import time
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"  # one core, as the target says; set before numpy loads
+import numpy as np
 
-import argparse  # noqa: E402
-import statistics  # noqa: E402
-import time  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from adaproj_edge.content.contentmap import ContentMap  # noqa: E402
-from adaproj_edge.geometry.analytic import simulate_surface  # noqa: E402
-from adaproj_edge.warp.engine import FAST, Backend, WarpSettings  # noqa: E402
-from adaproj_edge.warp.mesh import WarpCache  # noqa: E402
-from adaproj_edge.warp.planner import PlanSettings, WarpPlanner, compute_warp  # noqa: E402
-from adaproj_edge.warp.reference import REFERENCE  # noqa: E402
-from adaproj_edge.warp.warpmap import Grid, Warp  # noqa: E402
+from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.geometry.analytic import simulate_surface
+from adaproj_edge.threads import apply_thread_policy
+from adaproj_edge.warp.engine import FAST, Backend, WarpSettings
+from adaproj_edge.warp.mesh import WarpCache
+from adaproj_edge.warp.planner import PlanSettings, WarpPlanner, compute_warp
+from adaproj_edge.warp.reference import REFERENCE
+from adaproj_edge.warp.warpmap import Grid, Warp
 
 CONTENT = (640, 400)
 
@@ -84,6 +80,7 @@ def run(
 
 
 def main() -> None:
+    apply_thread_policy(1)  # one thread: the figures are per core
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--grids", default="20,40,80")
     ap.add_argument("--repeat", type=int, default=5)

@@ -15,11 +15,13 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from adaproj_edge.geometry.analytic import NON_DEVELOPABLE, SURFACES
+from adaproj_edge.threads import apply_thread_policy
 from tests.distortion import in_mask, visible_fraction
 from tests.warp.conftest import CONTENT, distortion, subject_masks, warped
 
 
 def main() -> None:
+    apply_thread_policy()
     print(
         f"{'surface':17s} {'mode':9s} {'angle err':>9s} {'size inc.':>9s} "
         f"{'folds':>5s} {'shown':>6s}"

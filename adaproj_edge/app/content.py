@@ -19,6 +19,7 @@ from adaproj_edge.arrays import Float32Array, Image
 from adaproj_edge.content.builtin import poster, poster_mask
 from adaproj_edge.content.cache import ContentMapper
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD, ContentMap
+from adaproj_edge.content.faces import FaceDetector
 from adaproj_edge.content.intake import read_content
 from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.link.device import Content, Settings
@@ -53,8 +54,9 @@ def mask_content_map(
 
 
 class SaliencyMaps:
-    """Saliency (the default ONNX model, one session, loaded at first use) max the user
-    mask, per named item: the model reruns only when an item's image changes."""
+    """Saliency (the default ONNX model, one session, loaded at first use) max the faces
+    found (:class:`~adaproj_edge.content.faces.FaceDetector`) max the user mask, per
+    named item: model and detector rerun only when an item's image changes."""
 
     def __init__(self, model: SaliencyModel | None = None) -> None:
         self._model = model
@@ -65,11 +67,11 @@ class SaliencyMaps:
     ) -> ContentMap:
         """The content map of item ``name``."""
         if self._mapper is None:
-            self._mapper = ContentMapper(self._model or SaliencyModel())
+            self._mapper = ContentMapper(self._model or SaliencyModel(), detector=FaceDetector())
         self._mapper.set_content(name, image)
         self._mapper.set_mask_values(name, mask)
         m = self._mapper.content_map(name)
-        return ContentMap(m.values, m.content_size, threshold)
+        return ContentMap(m.values, m.content_size, threshold, m.faces)
 
 
 def load_item(content: Content, content_map_fn: ContentMapFn) -> Item:

@@ -54,6 +54,7 @@ from adaproj_edge.app.runtime import Runtime
 from adaproj_edge.app.scoring import MEASURES, Scorer, SideViews
 from adaproj_edge.app.settings import AppSettings
 from adaproj_edge.errors import InputError
+from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.button import ButtonEvent
 from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.display import MemoryDisplay
@@ -62,7 +63,7 @@ from adaproj_edge.session import schemas
 from adaproj_edge.session.player import Replay
 from adaproj_edge.session.reader import Scan, iter_records
 from adaproj_edge.session.records import SerialTraffic, TruthPose
-from adaproj_edge.session.simulator import HAND_KEY, scene_of_session
+from adaproj_edge.session.simulator import HAND_KEY, scene_of_session, scoring_projector
 
 log = logging.getLogger(__name__)
 
@@ -97,6 +98,8 @@ class ReplayOptions:
     score: bool = True
     side_views: bool = True  # a few moments seen from the side, in the contact sheet
     stabilise: bool = True  # False: the display loop shows frames as rendered (margin 0)
+    # replaces the session's calibration (its depth model stays the session's)
+    calibration: Calibration | None = None
 
     def app_settings(self) -> AppSettings:
         """The runtime's settings for this replay."""
@@ -171,6 +174,8 @@ def _replay(
 ) -> tuple[dict[str, Any], FrameSampler]:
     frames = FrameSampler(out_dir, options.all_frames)
     cal = replay.calibration
+    if options.calibration is not None:
+        cal = options.calibration.with_depth(cal.depth)
     settings = options.app_settings()
     display = MemoryDisplay(cal.projector.width, cal.projector.height, replay.clock)
     rt = Runtime(cal, display, replay.clock, [builtin_item()], settings, mask_content_map, frames)
@@ -181,9 +186,12 @@ def _replay(
     spec_raw = scan.attachments.get(schemas.TRUTH_SURFACE_ATTACHMENT)
     if options.score and spec_raw is not None:
         scene = scene_of_session(json.loads(spec_raw), scan.attachments)
-        scorer = Scorer(scene, rt)
+        scorer = Scorer(scene, rt, scan.attachments)
         handheld = HandheldScorer(
-            scene, cal.projector, settings.display.stabiliser.margin, _hand(scan.metadata)
+            scene,
+            scoring_projector(scan.attachments, cal.projector),
+            settings.display.stabiliser.margin,
+            _hand(scan.metadata),
         )
         rt.screen.on_refresh = handheld.on_refresh
     period_ns = rt.screen.period_ns

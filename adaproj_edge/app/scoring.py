@@ -23,7 +23,7 @@ from adaproj_edge.render.display_maps import display_float_map
 from adaproj_edge.render.frame import render_frame
 from adaproj_edge.render.viewer import DEFAULT_VIEWER, view, viewer_for
 from adaproj_edge.session.records import TruthPose
-from adaproj_edge.session.simulator import Scene, true_surface
+from adaproj_edge.session.simulator import Scene, scoring_projector, true_surface
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.quality import measure
@@ -50,11 +50,16 @@ class Scorer:
         The session's true surface.
     runtime : Runtime
         The runtime being replayed (it keeps the float map of each content-aware frame).
+    attachments : dict of str to bytes
+        The session's attachments (a simulated session's true rig, when it has one, is
+        the projector that really lights the surface).
     """
 
-    def __init__(self, scene: Scene, runtime: Runtime) -> None:
+    def __init__(self, scene: Scene, runtime: Runtime, attachments: dict[str, bytes]) -> None:
         self.scene = scene
         self.rt = runtime
+        # the projector that really lights the surface (a simulated session's true rig)
+        self.projector = scoring_projector(attachments, runtime.calibration.projector)
         self.scores: list[dict[str, Any]] = []
         self.last_truth: Surface | None = None
         self._plain: dict[tuple[int, int], Float32Array] = {}
@@ -65,8 +70,7 @@ class Scorer:
         item = rt.item
         if rt.shown_map is None or item.content_map is None:
             return
-        proj = rt.calibration.projector
-        truth = true_surface(self.scene, pose, proj, (101, 161))
+        truth = true_surface(self.scene, pose, self.projector, (101, 161))
         settings = WarpSettings(
             mode="content", grid=rt.settings.grid, threshold=item.settings.threshold
         )

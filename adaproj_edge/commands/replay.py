@@ -10,8 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from adaproj_edge.app.replay import ReplayOptions, replay_session
-from adaproj_edge.app.settings import AppSettings
+from adaproj_edge.commands._outputs import check_output_dir
 from adaproj_edge.resources import default_session
 
 log = logging.getLogger(__name__)
@@ -47,16 +46,32 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         help="show each rendered frame as it is at every refresh (no stabilisation margin, "
         "no correction for the hand's motion)",
     )
+    p.add_argument(
+        "--calibration",
+        default=None,
+        metavar="FILE.toml",
+        help="replay with this calibration instead of the session's (e.g. one solved by "
+        "`adaproj calibrate`)",
+    )
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.out is not None:
+        check_output_dir(args.out, "output folder")
+
+    from adaproj_edge.app.replay import ReplayOptions, replay_session
+    from adaproj_edge.app.settings import AppSettings
+    from adaproj_edge.geometry.calibration import Calibration
+
     settings = replace(AppSettings(), caching=not args.no_cache, warm_start=not args.no_warm_start)
+    cal = Calibration.load(args.calibration) if args.calibration else None
     options = ReplayOptions(
         settings,
         all_frames=args.all_frames,
         score=not args.no_score,
         stabilise=not args.no_stabilise,
+        calibration=cal,
     )
     s = replay_session(args.session, args.out, options)
     c = s["counters"]

@@ -7,10 +7,8 @@ import logging
 from dataclasses import replace
 from typing import Any
 
+from adaproj_edge.commands._outputs import check_output_file
 from adaproj_edge.errors import InputError
-from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.session.hand import HandMotion
-from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session
 
 log = logging.getLogger(__name__)
 
@@ -50,11 +48,17 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    cal = Calibration.load(args.calibration) if args.calibration else Calibration.default()
     if args.tremor is not None and not 0.0 <= args.tremor <= 2.0:
         raise InputError(f"--tremor must be in [0, 2] degrees RMS, got {args.tremor}")
     if not -90.0 <= args.roll <= 90.0:
         raise InputError(f"--roll must be in [-90, 90] degrees, got {args.roll}")
+    check_output_file(args.out, "session file")
+
+    from adaproj_edge.geometry.calibration import Calibration
+    from adaproj_edge.session.hand import HandMotion
+    from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session
+
+    cal = Calibration.load(args.calibration) if args.calibration else Calibration.default()
     hand = HandMotion(args.seconds, args.seed, roll_deg=args.roll)
     if args.tremor is not None:
         hand = replace(hand, tremor_deg=args.tremor)

@@ -9,6 +9,8 @@ The file format (``hw/calibration/<board>.toml``, and the JSON attachment
     width = 1280
     height = 800
     K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
+    distortion = [k1, k2, p1, p2, k3]   # optional: lens distortion, OpenCV's model and
+                                        # order; absent (all zero) for a pinhole
     [depth]                # frame D, the depth-aligned OAK-D camera (read from the
     width = 640            # device on the board; stored in sessions)
     height = 400
@@ -17,6 +19,14 @@ The file format (``hw/calibration/<board>.toml``, and the JSON attachment
     [extrinsics]
     T_P_D = [[...], [...], [...], [0, 0, 0, 1]]   # 4x4, maps points in D to P, metres
     R_P_I = [[...], [...], [...]]                 # 3x3, rotates IMU vectors into P
+    [quality]              # optional: written by `adaproj calibrate` (how good the
+    rms_px = 0.31          # solve was; a file without it is a nominal guess)
+    verdict = "good"
+    ...
+
+Files without ``distortion`` or ``[quality]`` (every nominal file) load as before;
+:meth:`Calibration.to_toml` writes the file, :meth:`Calibration.to_dict` the JSON of
+session attachments (``distortion`` only when not zero, ``quality`` only when set).
 """
 
 from __future__ import annotations
@@ -25,7 +35,7 @@ import json
 import tomllib
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -77,6 +87,17 @@ class DepthCameraModel:
     def focal(self) -> float:
         return float(self.K[0, 0])
 
+    def intrinsics_at(self, width: int, height: int) -> FloatArray:
+        """Intrinsics (3, 3) of the camera depth is aligned to, at ``width`` x ``height``:
+        the same optical centre with pixels scaled (pixel centres at integers in both)."""
+        sx, sy = width / self.width, height / self.height
+        K = self.K
+        out = np.eye(3)
+        out[0, 0], out[0, 1], out[1, 1] = K[0, 0] * sx, K[0, 1] * sx, K[1, 1] * sy
+        out[0, 2] = (K[0, 2] + 0.5) * sx - 0.5
+        out[1, 2] = (K[1, 2] + 0.5) * sy - 0.5
+        return out
+
 
 @dataclass(frozen=True)
 class Calibration:
@@ -90,14 +111,27 @@ class Calibration:
         Rigid transform mapping points in D to P.
     R_P_I : (3, 3) float array
         Rotation taking IMU-frame vectors to P.
+    distortion : (5,) float array, optional
+        The projector lens's distortion (k1, k2, p1, p2, k3); zeros: a pinhole.
+    quality : dict, optional
+        How the calibration was solved (``adaproj calibrate``): RMS, verdict, ...;
+        None for a nominal file.
     """
 
     projector: Projector
     depth: DepthCameraModel
     T_P_D: FloatArray
     R_P_I: FloatArray
+    distortion: FloatArray = field(default_factory=lambda: np.zeros(5))
+    quality: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
+        dist = np.zeros(5)
+        d = np.asarray(self.distortion, dtype=np.float64).ravel()
+        if d.size > 5 or not np.all(np.isfinite(d)) or np.any(np.abs(d) > 10):
+            raise InputError("projector distortion must be up to 5 finite coefficients")
+        dist[: d.size] = d
+        object.__setattr__(self, "distortion", dist)
         T = _matrix(self.T_P_D, (4, 4), "T_P_D")
         if not np.allclose(T[3], [0, 0, 0, 1]) or not _is_rotation(T[:3, :3]):
             raise InputError("T_P_D must be a rigid 4x4 transform (rotation + translation)")
@@ -121,9 +155,12 @@ class Calibration:
     # ------------------------------------------------------------------ formats
     def to_dict(self) -> dict[str, Any]:
         p, d = self.projector, self.depth
-        return {
+        projector: dict[str, Any] = {"width": p.width, "height": p.height, "K": p.K.tolist()}
+        if np.any(self.distortion):
+            projector["distortion"] = self.distortion.tolist()
+        out: dict[str, Any] = {
             "format": FORMAT,
-            "projector": {"width": p.width, "height": p.height, "K": p.K.tolist()},
+            "projector": projector,
             "depth": {
                 "width": d.width,
                 "height": d.height,
@@ -132,6 +169,19 @@ class Calibration:
             },
             "extrinsics": {"T_P_D": self.T_P_D.tolist(), "R_P_I": self.R_P_I.tolist()},
         }
+        if self.quality is not None:
+            out["quality"] = dict(self.quality)
+        return out
+
+    def to_toml(self, comment: str = "") -> str:
+        """The calibration as a TOML file (the format above); ``comment`` lines first."""
+        lines = [f"# {c}".rstrip() for c in comment.splitlines()]
+        data = self.to_dict()
+        lines.append(f"format = {_toml_value(data.pop('format'))}")
+        for table, values in data.items():
+            lines += ["", f"[{table}]"]
+            lines += [f"{k} = {_toml_value(v)}" for k, v in values.items()]
+        return "\n".join(lines) + "\n"
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=1)
@@ -155,7 +205,11 @@ class Calibration:
             else:
                 depth = DepthCameraModel.oak_d()
             T, R = np.asarray(ex["T_P_D"], float), np.asarray(ex["R_P_I"], float)
-            return cls(projector, depth, T, R)
+            dist = np.asarray(pj.get("distortion", np.zeros(5)), float)
+            quality = data.get("quality")
+            if quality is not None and not isinstance(quality, dict):
+                raise InputError("[quality] must be a table")
+            return cls(projector, depth, T, R, dist, quality)
 
     @classmethod
     def from_json(cls, text: str | bytes, what: str = "calibration") -> Calibration:
@@ -192,6 +246,22 @@ def field_errors(what: str) -> Iterator[None]:
         raise InputError(f"{what}: malformed value ({e})") from None
     except InputError as e:
         raise InputError(f"{what}: {e}") from None
+
+
+def _toml_value(v: Any) -> str:
+    """A TOML value: strings, booleans, finite numbers and (nested) lists of them."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, int | float | np.integer | np.floating):
+        x = float(v) if isinstance(v, float | np.floating) else int(v)
+        if isinstance(x, float) and not np.isfinite(x):
+            raise InputError(f"cannot write {x} to a calibration file")
+        return repr(x)
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise InputError(f"cannot write {type(v).__name__} to a calibration file")
 
 
 def _matrix(a: Any, shape: tuple[int, int], what: str) -> FloatArray:

@@ -22,21 +22,41 @@ Format::
     fps = 15.0
     [serial]
     device = "/dev/ttyGS0"
+    [calibrate]            # optional: `adaproj calibrate`, any field of CameraSettings
+                           # (not [calibration]: that name is the key above)
+    socket = "CAM_A"       # the camera depth is aligned to ([depth] align_to)
+    width = 1280           # its frames for the structured light
+    height = 800
+    fps = 30.0
+    exposure_us = 8000     # fixed exposure and sensitivity: lower them when the
+    iso = 400              # white pattern saturates
+    display_latency_ms = 100.0   # Display.show -> pattern on the wall
+    camera_latency_ms = 60.0     # end of exposure -> frame on the host
+
+The calibration a board runs with: ``adaproj run --calibration FILE``, else the
+device's own file written by ``adaproj calibrate`` (:data:`DEVICE_CALIBRATION`)
+when there is one, else the board's nominal ``calibration`` file
+(:func:`calibration_in_use`).
 """
 
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.calibration import Calibration, field_errors
 from adaproj_edge.hal.button import check_key_code
+from adaproj_edge.hal.camera import CameraSettings
 from adaproj_edge.hal.depth import StereoSettings
 from adaproj_edge.hal.lsm6dsox import ADDRESSES, Lsm6dsoxConfig
 from adaproj_edge.resources import boards_dir
+
+DEVICE_CALIBRATION = Path("/var/lib/adaproj/calibration.toml")
+"""Where ``adaproj calibrate`` writes a unit's own calibration on the device, and
+where ``adaproj run`` looks for it first."""
 
 
 @dataclass(frozen=True)
@@ -76,6 +96,7 @@ class Board:
     key_code: int
     serial_device: str
     depth: StereoSettings
+    camera: CameraSettings = field(default_factory=CameraSettings)
     display: DisplayConfig = field(default_factory=DisplayConfig)
 
     @property
@@ -86,6 +107,10 @@ class Board:
     def calibration(self) -> Calibration:
         return Calibration.load(self.calibration_path)
 
+    def with_calibration(self, path: str | Path) -> Board:
+        """This board running with the calibration file ``path``."""
+        return replace(self, calibration_path=Path(path))
+
     @classmethod
     def load(cls, path: str | Path) -> Board:
         """Read a board file by path, or by name from ``hw/boards``."""
@@ -95,7 +120,8 @@ class Board:
         try:
             data = tomllib.loads(p.read_text())
         except FileNotFoundError:
-            raise InputError(f"board file not found: {p}") from None
+            known = ", ".join(sorted(b.stem for b in boards_dir().glob("*.toml")))
+            raise InputError(f"board file not found: {p} (boards: {known})") from None
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
             raise InputError(f"cannot read board file {p}: {e}") from None
         with field_errors(f"board file {p}"):
@@ -128,4 +154,17 @@ def _parse(data: dict[str, Any], path: Path) -> Board:
         display=DisplayConfig(**_pick(DisplayConfig, dict(data.get("display", {})))),
         serial_device=str(data.get("serial", {}).get("device", "/dev/ttyGS0")),
         depth=StereoSettings(**_pick(StereoSettings, dict(data.get("depth", {})))),
+        camera=CameraSettings(**_pick(CameraSettings, dict(data.get("calibrate", {})))),
     )
+
+
+def calibration_in_use(
+    board: Board, explicit: str | Path | None = None, device_file: Path = DEVICE_CALIBRATION
+) -> Path:
+    """The calibration file ``board`` runs with: ``explicit`` when given, else the
+    unit's own ``device_file`` when it exists, else the board's nominal file."""
+    if explicit is not None:
+        return Path(explicit)
+    if device_file.is_file():
+        return device_file
+    return board.calibration_path

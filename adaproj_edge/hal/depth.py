@@ -156,6 +156,31 @@ def frame_from_img(img: Any, receive_ns: int) -> DepthFrame:
     )
 
 
+def add_stereo(pipeline: Any, settings: StereoSettings) -> Any:
+    """Add the stereo depth of ``settings`` to a DepthAI ``pipeline`` (both mono
+    cameras and the ``StereoDepth`` node); returns its depth output queue."""
+    dai = _dai()
+    size = (settings.width, settings.height)
+    left = pipeline.create(dai.node.Camera).build(dai.CameraBoardSocket.CAM_B)
+    right = pipeline.create(dai.node.Camera).build(dai.CameraBoardSocket.CAM_C)
+    stereo = pipeline.create(dai.node.StereoDepth)
+    stereo.setDefaultProfilePreset(getattr(dai.node.StereoDepth.PresetMode, settings.preset))
+    left.requestOutput(size, fps=settings.fps).link(stereo.left)
+    right.requestOutput(size, fps=settings.fps).link(stereo.right)
+    stereo.setLeftRightCheck(settings.left_right_check)
+    stereo.setSubpixel(settings.subpixel)
+    stereo.setSubpixelFractionalBits(settings.subpixel_fractional_bits)
+    stereo.setExtendedDisparity(settings.extended_disparity)
+    stereo.setDepthAlign(getattr(dai.CameraBoardSocket, settings.align_to))
+    stereo.setOutputSize(settings.width, settings.height)
+    cfg = stereo_config(settings)
+    stereo.initialConfig.setMedianFilter(cfg.getMedianFilter())
+    stereo.initialConfig.setConfidenceThreshold(settings.confidence_threshold)
+    stereo.initialConfig.setLeftRightCheckThreshold(settings.left_right_threshold)
+    stereo.initialConfig.setDepthUnit(dai.LengthUnit.MILLIMETER)
+    return stereo.depth.createOutputQueue(maxSize=4, blocking=False)
+
+
 def build_pipeline(settings: StereoSettings) -> tuple[Any, Any, Any]:
     """Build and start the stereo pipeline on the attached OAK-D (board only).
 
@@ -166,25 +191,7 @@ def build_pipeline(settings: StereoSettings) -> tuple[Any, Any, Any]:
     dai = _dai()
     try:
         pipeline = dai.Pipeline()
-        size = (settings.width, settings.height)
-        left = pipeline.create(dai.node.Camera).build(dai.CameraBoardSocket.CAM_B)
-        right = pipeline.create(dai.node.Camera).build(dai.CameraBoardSocket.CAM_C)
-        stereo = pipeline.create(dai.node.StereoDepth)
-        stereo.setDefaultProfilePreset(getattr(dai.node.StereoDepth.PresetMode, settings.preset))
-        left.requestOutput(size, fps=settings.fps).link(stereo.left)
-        right.requestOutput(size, fps=settings.fps).link(stereo.right)
-        stereo.setLeftRightCheck(settings.left_right_check)
-        stereo.setSubpixel(settings.subpixel)
-        stereo.setSubpixelFractionalBits(settings.subpixel_fractional_bits)
-        stereo.setExtendedDisparity(settings.extended_disparity)
-        stereo.setDepthAlign(getattr(dai.CameraBoardSocket, settings.align_to))
-        stereo.setOutputSize(settings.width, settings.height)
-        cfg = stereo_config(settings)
-        stereo.initialConfig.setMedianFilter(cfg.getMedianFilter())
-        stereo.initialConfig.setConfidenceThreshold(settings.confidence_threshold)
-        stereo.initialConfig.setLeftRightCheckThreshold(settings.left_right_threshold)
-        stereo.initialConfig.setDepthUnit(dai.LengthUnit.MILLIMETER)
-        queue = stereo.depth.createOutputQueue(maxSize=4, blocking=False)
+        queue = add_stereo(pipeline, settings)
         calibration = pipeline.getDefaultDevice().readCalibration()
         pipeline.start()
     except RuntimeError as e:
@@ -193,12 +200,19 @@ def build_pipeline(settings: StereoSettings) -> tuple[Any, Any, Any]:
 
 
 class OakDepthCamera:
-    """The real depth camera (an OAK-D through DepthAI v3)."""
+    """The real depth camera (an OAK-D through DepthAI v3).
 
-    def __init__(self, settings: StereoSettings, clock: Clock) -> None:
+    ``started`` (pipeline, depth queue, calibration handler) makes it read a pipeline
+    built elsewhere (:class:`adaproj_edge.hal.camera.OakRig`), which then stops it.
+    """
+
+    def __init__(
+        self, settings: StereoSettings, clock: Clock, started: tuple[Any, Any, Any] | None = None
+    ) -> None:
         self.settings = settings
         self._clock = clock
-        self._pipeline, self._queue, calibration = build_pipeline(settings)
+        self._owner = started is None
+        self._pipeline, self._queue, calibration = started or build_pipeline(settings)
         self._model = depth_model(calibration, settings)
 
     @property
@@ -213,7 +227,8 @@ class OakDepthCamera:
         return None if img is None else frame_from_img(img, self._clock.now_ns())
 
     def close(self) -> None:
-        self._pipeline.stop()
+        if self._owner:
+            self._pipeline.stop()
 
 
 class ReplayDepthCamera:

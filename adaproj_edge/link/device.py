@@ -1,8 +1,8 @@
 """What the SMP server needs from the running device, and a stand-in for bring-up.
 
 The device runtime (``app/``) implements :class:`DeviceRuntime`; ``adaproj link`` on
-its own uses :class:`StandaloneDevice`, which shows the active image letterboxed on
-the projector frame, without any warp.
+its own uses :class:`StandaloneDevice`, which shows the active image (a clip: its first
+frame) letterboxed on the projector frame, without any warp.
 """
 
 from __future__ import annotations

@@ -79,7 +79,7 @@ class HandMotion:
     sway_deg : RMS slow sway about each axis (degrees)
     roll_deg : the device's roll about its optical axis, held the whole time
     still_s, move_s : durations of the still and moving phases
-    moves : int, optional
+    hold_after : int, optional
         After this many moves the hand holds still to the end (None: never).
     """
 
@@ -93,7 +93,7 @@ class HandMotion:
     roll_deg: float = 0.0
     still_s: float = 1.0
     move_s: float = 0.8
-    moves: int | None = None
+    hold_after: int | None = None
 
     @cached_property
     def _params(self) -> tuple[FloatArray, _Spectrum, _Spectrum]:
@@ -121,8 +121,8 @@ class HandMotion:
         period = self.still_s + self.move_s
         t = np.asarray(t, dtype=np.float64)
         out = np.mod(t, period) >= self.still_s
-        if self.moves is not None:
-            out &= t < self.moves * period
+        if self.hold_after is not None:
+            out &= t < self.hold_after * period
         return np.asarray(out)
 
     def still_intervals(self) -> list[tuple[float, float]]:
@@ -132,7 +132,7 @@ class HandMotion:
         start = 0.0
         k = 0
         while start < self.seconds:
-            held = self.moves is not None and k >= self.moves
+            held = self.hold_after is not None and k >= self.hold_after
             end = self.seconds if held else min(start + self.still_s, self.seconds)
             out.append((start, end))
             start += period
@@ -151,9 +151,9 @@ class HandMotion:
         s = _min_jerk(tau)[:, None]
         k = np.clip(np.where(t < 0, 0, k), 0, len(aims) - 2)
         out: FloatArray = aims[k] + s * (aims[k + 1] - aims[k])
-        if self.moves is not None:
-            held = t >= self.moves * period
-            out[held] = aims[min(self.moves, len(aims) - 1)]
+        if self.hold_after is not None:
+            held = t >= self.hold_after * period
+            out[held] = aims[min(self.hold_after, len(aims) - 1)]
         return out
 
     def state(self, t: FloatArray) -> FloatArray:

@@ -34,3 +34,19 @@ class TruthPose:
     @property
     def receive_ns(self) -> int:
         return self.t_ns
+
+
+@dataclass(frozen=True)
+class PatternShown:
+    """A structured-light pattern put on the display (calibration sessions): when
+    (``t_ns``, the display call on the device's monotonic clock), for which pose, and
+    which pattern of the set (``index``, ``name``)."""
+
+    t_ns: int
+    pose: int
+    index: int
+    name: str
+
+    @property
+    def receive_ns(self) -> int:
+        return self.t_ns

@@ -11,11 +11,21 @@ topic               encoding / schema       payload
 ``/serial/rx``      json ``adaproj.Serial`` receive_ns, data (base64), from the host
 ``/serial/tx``      json ``adaproj.Serial`` the same, to the host
 ``/truth/pose``     json ``adaproj.Pose``   simulated sessions: T_W_P
+``/camera/image``   protobuf                calibration sessions: the structured-
+                    ``foxglove.RawImage``   light camera, ``mono8``; ``timestamp``
+                                            = start of exposure; ``frame_id`` holds
+                                            exposure (us) and ISO
+``/calibration/     json                    calibration sessions: each pattern
+pattern``           ``adaproj.Pattern``     shown (t_ns, pose, index, name)
 ==================  ======================  =======================================
 
 Every message's ``log_time`` is its receive time and ``publish_time`` its sensor time
 (int ns, the device's monotonic clock). Attachments: ``calibration.json`` (always,
-written first) and, in simulated sessions, ``truth-surface.json`` plus the mesh.
+written first) and, in simulated sessions, ``truth-surface.json`` plus the mesh, and
+``truth-calibration.json`` when the simulated device's true rig differs from the
+calibration it records (calibration sessions, and sessions for the calibration
+payoff). Calibration sessions also attach ``camera.json`` (the camera's
+intrinsics and size) and ``capture.json`` (the board's capture settings).
 """
 
 from __future__ import annotations
@@ -32,8 +42,14 @@ BUTTON = "/button"
 SERIAL_RX = "/serial/rx"
 SERIAL_TX = "/serial/tx"
 TRUTH_POSE = "/truth/pose"
+CAMERA = "/camera/image"
+PATTERN = "/calibration/pattern"
 CALIBRATION_ATTACHMENT = "calibration.json"
 TRUTH_SURFACE_ATTACHMENT = "truth-surface.json"
+TRUTH_RIG_ATTACHMENT = "truth-calibration.json"
+CAMERA_ATTACHMENT = "camera.json"
+CAPTURE_ATTACHMENT = "capture.json"
+PROTOBUF_TOPICS = (DEPTH, CAMERA)
 PROFILE = "adaproj-session/1"
 DEPTH_FRAME_ID = "depth"
 
@@ -77,6 +93,10 @@ JSON_SCHEMAS: dict[str, tuple[str, bytes]] = {
             "position": _VEC3,
             "quaternion": {"type": "array", "items": {"type": "number"}, "minItems": 4},
         },
+    ),
+    PATTERN: _object(
+        "adaproj.Pattern",
+        {"t_ns": _INT, "pose": _INT, "index": _INT, "name": {"type": "string"}},
     ),
 }
 JSON_SCHEMAS[SERIAL_TX] = JSON_SCHEMAS[SERIAL_RX]

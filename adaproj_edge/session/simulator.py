@@ -11,6 +11,16 @@ intent (``hand``: still phases, tremor, sway, roll; :data:`HAND_KEY`), so tests 
 score what the device estimates and shows. IMU samples arrive as the driver reads the
 chip's FIFO: in batches every ``ImuTiming.read_period_s``. Everything follows from the
 seed: the same arguments give the same file.
+
+Given a ``truth`` rig, the world follows it (depth seen through its ``T_P_D``, the
+IMU turned by its ``R_P_I``, the true projector lighting the surface) while the
+session records the ``calibration`` the device believes; the truth goes into the
+``truth-calibration.json`` attachment, and :func:`scoring_projector` gives the
+projector a ground-truth scorer must light the surface with.
+
+Besides the analytic surfaces, ``wall-floor`` is a wall 2 m ahead and the floor
+0.45 m below the device, seen from a device tilted 20 degrees down (``start``: its
+first pose, for the calibration simulator).
 """
 
 from __future__ import annotations
@@ -27,7 +37,7 @@ from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.analytic import SURFACES, AnalyticSurface, get_surface, ray_cast
 from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.geometry.mesh_surface import MeshSurface, load_mesh, ply_bytes, rasterize_depth
+from adaproj_edge.geometry.mesh_surface import MeshSurface, load_mesh, ply_bytes
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.rotations import quaternion, rotation_of
 from adaproj_edge.geometry.surface import Surface
@@ -45,6 +55,19 @@ from adaproj_edge.session.writer import SessionWriter
 T0_NS = 1_000_000_000
 KEY_CODE = 28
 MESH_ATTACHMENT = "truth-mesh.ply"
+WALL_FLOOR = "wall-floor"
+
+
+def wall_floor_mesh(wall_z: float = 2.0, floor_y: float = 0.45) -> MeshSurface:
+    """A wall (``z = wall_z``) standing on a floor (``y = floor_y``, y is down), 6 m
+    wide, metres in the frame of a level device at the origin."""
+    v = np.array(
+        [
+            [-3.0, -2.5, wall_z], [3.0, -2.5, wall_z], [3.0, floor_y, wall_z],
+            [-3.0, floor_y, wall_z], [-3.0, floor_y, 0.1], [3.0, floor_y, 0.1],
+        ]
+    )  # fmt: skip
+    return MeshSurface(WALL_FLOOR, v, np.array([[0, 1, 2], [0, 2, 3], [3, 2, 5], [3, 5, 4]]))
 
 
 HAND_KEY = "hand"
@@ -113,12 +136,15 @@ class Scene:
         """A built-in surface by name, or a mesh file (``.obj``, ``.ply``)."""
         if name_or_path in SURFACES:
             return cls(get_surface(name_or_path), {"kind": "analytic", "name": name_or_path})
+        if name_or_path == WALL_FLOOR:
+            spec = {"kind": "mesh", "name": WALL_FLOOR, "file": MESH_ATTACHMENT}
+            return cls(wall_floor_mesh(), {**spec, "start": [0.0, 0.0, 0.0, -0.35, 0.0, 0.0]})
         if Path(name_or_path).suffix.lower() in (".obj", ".ply"):
             mesh = load_mesh(name_or_path)
             return cls(mesh, {"kind": "mesh", "name": mesh.name, "file": MESH_ATTACHMENT})
         raise InputError(
             f"unknown surface {name_or_path!r}: give a mesh file (.obj, .ply) or one of "
-            + ", ".join(SURFACES)
+            + ", ".join([*SURFACES, WALL_FLOOR])
         )
 
     def points_seen(
@@ -126,10 +152,13 @@ class Scene:
     ) -> FloatArray:
         """Points (height, width, 3) in the camera frame where its pixel rays meet the
         surface (NaN: nothing) for a camera with intrinsics ``K`` at pose (R_W_C, t_W_C).
+
+        A mesh is cast in one call through its BVH (built once per scene); the rays
+        have z = 1 in the camera frame, so the hit's ray parameter is its depth.
         """
         rays = Projector(K, width, height).rays(Projector(K, width, height).pixel_grid())
         if isinstance(self.surface, MeshSurface):
-            z = rasterize_depth(self.surface, K, width, height, R_W_C, t_W_C)
+            z = self.surface.intersect(np.asarray(t_W_C, dtype=np.float64), rays @ R_W_C.T)
             return rays * z[..., None]
         hits = ray_cast(self.surface, t_W_C, rays @ R_W_C.T)
         return (hits - t_W_C) @ R_W_C
@@ -250,15 +279,19 @@ def simulate_session(
     out: str | os.PathLike[str],
     calibration: Calibration | None = None,
     settings: SimulationSettings | None = None,
+    truth: Calibration | None = None,
 ) -> int:
-    """Simulate and write a session file; returns the number of records."""
+    """Simulate and write a session file; returns the number of records.
+
+    ``calibration`` is what the session records (the device's belief); the world
+    follows ``truth`` when given (recorded as ``truth-calibration.json``)."""
     calibration = calibration or Calibration.default()
     settings = settings or SimulationSettings()
     if settings.seconds <= 0 or settings.seconds > 600:
         raise InputError(f"--seconds must be in (0, 600], got {settings.seconds}")
     if not 0 < settings.depth_fps <= 60:
         raise InputError(f"the depth frame rate must be in (0, 60], got {settings.depth_fps}")
-    recs = simulate(scene, calibration, settings)
+    recs = simulate(scene, truth or calibration, settings)
     meta = {
         "source": "simulator",
         "surface": json.dumps(scene.spec),
@@ -273,10 +306,25 @@ def simulate_session(
         w.attach_json(schemas.TRUTH_SURFACE_ATTACHMENT, scene.spec, T0_NS)
         if isinstance(scene.surface, MeshSurface):
             w.attach(MESH_ATTACHMENT, "application/octet-stream", ply_bytes(scene.surface), T0_NS)
+        if truth is not None:
+            w.attach(schemas.TRUTH_RIG_ATTACHMENT, "application/json", truth.to_json().encode())
         for r in recs:
             w.write(r)
     os.replace(tmp, out)
     return len(recs)
+
+
+def truth_rig(attachments: dict[str, bytes]) -> Calibration | None:
+    """The true rig of a simulated session (``truth-calibration.json``), if any."""
+    raw = attachments.get(schemas.TRUTH_RIG_ATTACHMENT)
+    return None if raw is None else Calibration.from_json(raw, schemas.TRUTH_RIG_ATTACHMENT)
+
+
+def scoring_projector(attachments: dict[str, bytes], recorded: Projector) -> Projector:
+    """The projector that lights the true surface in a simulated session: the true
+    rig's when the session has one, else the ``recorded`` calibration's."""
+    rig = truth_rig(attachments)
+    return recorded if rig is None else rig.projector
 
 
 def scene_of_session(spec: dict[str, Any], attachments: dict[str, bytes]) -> Scene:

@@ -18,6 +18,8 @@ from mcap.writer import CompressionType, Writer
 
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.calibration import Calibration
+from adaproj_edge.hal.camera import CameraFrame
+from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.session import schemas as s
 from adaproj_edge.session.codec import Record, encode, sensor_time, topic_of
 
@@ -61,7 +63,7 @@ class SessionWriter:
 
     def _channel(self, topic: str) -> int:
         if topic not in self._channels:
-            if topic == s.DEPTH:
+            if topic in s.PROTOBUF_TOPICS:
                 sid = self._mcap.register_schema(
                     "foxglove.RawImage", "protobuf", s.file_descriptor_set(RawImage.DESCRIPTOR.file)
                 )
@@ -78,7 +80,7 @@ class SessionWriter:
         """Append one record (depth frame, IMU sample, button event, serial bytes, pose)."""
         topic = topic_of(rec)
         cid = self._channel(topic)
-        seq = rec.sequence if topic == s.DEPTH else self._sequence[topic]  # type: ignore[union-attr]
+        seq = rec.sequence if isinstance(rec, DepthFrame | CameraFrame) else self._sequence[topic]
         self._sequence[topic] += 1
         self._mcap.add_message(cid, rec.receive_ns, encode(rec), sensor_time(rec), seq)
         self.count += 1

@@ -1,0 +1,235 @@
+"""What the depth-aligned camera sees when the projector shows a frame on a surface.
+
+For one device pose (:class:`LitView`): every camera pixel is cast into the scene at
+``supersample`` x ``supersample`` points; each point is lit by the projector pixel
+that covers it — when the projector sees the point (a shadow map from the
+projector's side; lens distortion of the true projector applied) — with Lambertian
+falloff ``cos(incidence) / distance^2`` and a textured albedo. :func:`render_capture`
+then turns a projector frame into a grey camera image: projector gamma and black
+level, ambient light, a little light reflected between the surfaces (a wide blur
+of the direct light), the camera's exposure and blur, shot and read noise, 8-bit
+quantisation and saturation.
+
+Used by the calibration simulator (:mod:`adaproj_edge.session.calibration_sim`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.arrays import FloatArray, Image
+from adaproj_edge.geometry.calibration import Calibration, DepthCameraModel
+from adaproj_edge.session.simulator import Scene
+
+
+@dataclass(frozen=True)
+class CameraOptics:
+    """Photometry of the simulated projector and camera.
+
+    ``white_level`` is the grey level of full white on a frontal surface of albedo 1
+    at ``reference_m`` with the reference exposure (``reference_exposure_us`` at
+    ``reference_iso``); ``ambient`` the grey level ambient light gives the same
+    surface.
+    """
+
+    white_level: float = 90.0
+    reference_m: float = 1.5
+    reference_exposure_us: int = 8000
+    reference_iso: int = 400
+    ambient: float = 12.0
+    gamma: float = 2.2
+    black_level: float = 0.02
+    albedo_texture: float = 0.15
+    interreflection: float = 0.05
+    blur_px: float = 0.6
+    read_noise: float = 1.5
+    shot_noise: float = 0.3
+    supersample: int = 3
+
+
+def distort(xn: FloatArray, yn: FloatArray, d: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """OpenCV's lens distortion ``d`` = (k1, k2, p1, p2, k3) of normalised coordinates."""
+    k1, k2, p1, p2, k3 = (float(v) for v in d)
+    r2 = xn * xn + yn * yn
+    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = xn * radial + 2 * p1 * xn * yn + p2 * (r2 + 2 * xn * xn)
+    yd = yn * radial + p1 * (r2 + 2 * yn * yn) + 2 * p2 * xn * yn
+    return xd, yd
+
+
+def project_points(points_p: FloatArray, K: FloatArray, dist: FloatArray | None) -> FloatArray:
+    """Pixel coordinates (..., 2) of points (..., 3) in frame P, with lens distortion."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xn = points_p[..., 0] / points_p[..., 2]
+        yn = points_p[..., 1] / points_p[..., 2]
+    if dist is not None and np.any(dist):
+        xn, yn = distort(xn, yn, dist)
+    return np.stack([K[0, 0] * xn + K[0, 1] * yn + K[0, 2], K[1, 1] * yn + K[1, 2]], axis=-1)
+
+
+def _albedo(points_w: FloatArray, amplitude: float) -> FloatArray:
+    """A smooth procedural texture (..., ) in [1 - amplitude, 1] of world points."""
+    x, y, z = points_w[..., 0], points_w[..., 1], points_w[..., 2]
+    t = np.sin(23.0 * x + 3.0 * z) * np.sin(19.0 * y - 5.0 * z) + 0.5 * np.sin(41.0 * (x + y))
+    out: FloatArray = 1.0 - amplitude * (0.5 + t / 3.0)
+    return out
+
+
+@dataclass(frozen=True)
+class LitView:
+    """The geometry of one device pose, at ``supersample`` x the camera resolution.
+
+    ``uv`` (H, W, 2) float32: the projector pixel lighting each point (-10 where
+    none: no surface, outside the frame, or in the projector's shadow); ``light``
+    (H, W) float32: albedo x cos(incidence) x (reference / distance)^2 where lit;
+    ``albedo`` (H, W) float32 (0 where there is no surface); ``footprint_px``: the
+    median distance in projector pixels between neighbouring points (the projector
+    frame is blurred over it before it is sampled, so a point stands for its whole
+    patch of the frame: no aliasing between the two pixel grids).
+    """
+
+    uv: NDArray[np.float32]
+    light: NDArray[np.float32]
+    albedo: NDArray[np.float32]
+    supersample: int
+    footprint_px: float = 0.0
+
+
+def lit_view(
+    scene: Scene,
+    rig: Calibration,
+    R_W_P: FloatArray,
+    t_W_P: FloatArray,
+    K_camera: FloatArray,
+    size: tuple[int, int],
+    optics: CameraOptics,
+    distortion: FloatArray | None = None,
+) -> LitView:
+    """Cast the camera's pixels (``K_camera`` at ``size`` (w, h), frame D of ``rig``)
+    into ``scene`` with the device at pose (``R_W_P``, ``t_W_P``); see :class:`LitView`."""
+    n = optics.supersample
+    w, h = size
+    Ks = DepthCameraModel(K_camera, w, h).intrinsics_at(n * w, n * h)
+    T = rig.T_P_D
+    R_W_D = R_W_P @ T[:3, :3]
+    t_W_D = R_W_P @ T[:3, 3] + t_W_P
+    pts_d = scene.points_seen(Ks, n * w, n * h, R_W_D, t_W_D)
+    pts_p = pts_d @ T[:3, :3].T + T[:3, 3]
+    proj = rig.projector
+    uv = project_points(pts_p, proj.K, distortion)
+    # the projector's own view of the scene: a point it lights is the nearest on its ray
+    shadow = scene.points_seen(proj.K, proj.width, proj.height, R_W_P, t_W_P)[..., 2]
+    with np.errstate(invalid="ignore"):
+        ui = np.rint(uv[..., 0]).astype(np.int64, copy=False)
+        vi = np.rint(uv[..., 1]).astype(np.int64, copy=False)
+        inside = (ui >= 0) & (ui < proj.width) & (vi >= 0) & (vi < proj.height)
+        inside &= np.isfinite(pts_p[..., 2])
+        ui, vi = np.where(inside, ui, 0), np.where(inside, vi, 0)
+        z_first = shadow[vi, ui]
+        z = pts_p[..., 2]
+        seen = inside & ~(z > np.where(np.isfinite(z_first), z_first, np.inf) * 1.01 + 0.005)
+    # Lambertian falloff from the projector
+    dx = np.gradient(pts_p, axis=1)
+    dy = np.gradient(pts_p, axis=0)
+    normal = np.cross(dx, dy)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+        dist = np.linalg.norm(pts_p, axis=-1)
+        cos = np.abs(np.sum(normal * pts_p, axis=-1)) / dist
+    cos = np.where(np.isfinite(cos), cos, 0.0)
+    pts_w = pts_p @ R_W_P.T + t_W_P
+    albedo = np.where(np.isfinite(z), _albedo(pts_w, optics.albedo_texture), 0.0)
+    light = np.where(seen, albedo * cos * (optics.reference_m / np.where(seen, dist, 1.0)) ** 2, 0)
+    step = np.linalg.norm(np.diff(uv, axis=1), axis=-1)[seen[:, 1:] & seen[:, :-1]]
+    footprint = float(np.median(step)) if step.size else 0.0
+    uv = np.where(seen[..., None], uv, -10.0)
+    return LitView(
+        uv.astype(np.float32), light.astype(np.float32), albedo.astype(np.float32), n, footprint
+    )
+
+
+def projector_light(frame: Image, gamma: float, black_level: float) -> NDArray[np.float32]:
+    """The light (h, w) in [black_level, 1] a projector sends for a frame (grey or BGR)."""
+    grey = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+    lut = black_level + (1.0 - black_level) * (np.arange(256) / 255.0) ** gamma
+    out: NDArray[np.float32] = lut.astype(np.float32)[grey]
+    return out
+
+
+def clean_capture(
+    view: LitView, frame: Image | None, optics: CameraOptics, exposure_us: int, iso: int
+) -> NDArray[np.float32]:
+    """The camera image (h, w) float32 of ``view`` while the projector shows ``frame``
+    (None: the projector is off or covered), before noise and quantisation."""
+    gain = (exposure_us / optics.reference_exposure_us) * (iso / optics.reference_iso)
+    direct: NDArray[np.float32]
+    if frame is None:
+        direct = np.zeros(view.light.shape, np.float32)
+    else:
+        lightmap = projector_light(frame, optics.gamma, optics.black_level)
+        if view.footprint_px > 1.0:  # a box of the footprint's width, as a Gaussian
+            lightmap = np.asarray(
+                cv2.GaussianBlur(lightmap, (0, 0), view.footprint_px / np.sqrt(12.0)), np.float32
+            )
+        mx, my = view.uv[..., 0], view.uv[..., 1]
+        sent = cv2.remap(lightmap, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+        direct = np.asarray(sent * view.light * np.float32(optics.white_level), np.float32)
+    if optics.interreflection > 0:
+        # light reflected between the surfaces: a wide blur of the direct light (on a
+        # 32x smaller image; it has no detail)
+        dh, dw = direct.shape[0], direct.shape[1]
+        small = cv2.resize(
+            direct, (max(dw // 32, 1), max(dh // 32, 1)), interpolation=cv2.INTER_AREA
+        )
+        small = cv2.GaussianBlur(small, (0, 0), max(small.shape) / 12.0)
+        bounce = cv2.resize(small, (dw, dh), interpolation=cv2.INTER_LINEAR)
+        direct = direct + np.asarray(bounce, np.float32) * np.float32(optics.interreflection) * (
+            view.albedo > 0
+        )
+    radiance = direct + view.albedo * np.float32(optics.ambient)
+    n = view.supersample
+    h, w = radiance.shape[0] // n, radiance.shape[1] // n
+    img = np.asarray(cv2.resize(radiance, (w, h), interpolation=cv2.INTER_AREA), np.float32)
+    img *= np.float32(gain)
+    if optics.blur_px > 0:
+        img = np.asarray(cv2.GaussianBlur(img, (0, 0), optics.blur_px), np.float32)
+    return img
+
+
+def noise_sigma(clean: NDArray[np.float32], optics: CameraOptics) -> NDArray[np.float32]:
+    """The camera noise's standard deviation (h, w) at each pixel of a clean image."""
+    var = np.float32(optics.read_noise**2) + np.float32(optics.shot_noise) * np.maximum(clean, 0)
+    return np.asarray(np.sqrt(var), np.float32)
+
+
+def expose(
+    clean: NDArray[np.float32],
+    optics: CameraOptics,
+    rng: np.random.Generator,
+    sigma: NDArray[np.float32] | None = None,
+) -> Image:
+    """A clean camera image (h, w) with shot and read noise (``sigma``: its
+    :func:`noise_sigma`, when known), quantised to uint8."""
+    if sigma is None:
+        sigma = noise_sigma(clean, optics)
+    img = rng.standard_normal(clean.shape, dtype=np.float32)
+    img *= sigma
+    img += clean
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def render_capture(
+    view: LitView,
+    frame: Image | None,
+    optics: CameraOptics,
+    exposure_us: int,
+    iso: int,
+    rng: np.random.Generator,
+) -> Image:
+    """The grey camera image (h, w) uint8 of ``view`` while the projector shows
+    ``frame`` (None: the projector is off or covered)."""
+    return expose(clean_capture(view, frame, optics, exposure_us, iso), optics, rng)
