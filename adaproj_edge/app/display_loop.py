@@ -14,9 +14,10 @@ as rendered (the runtime before the display loop).
 A new frame of the same content places it a little differently from the last one (a
 refinement redistributes it, a new surface estimate or "up" moves it by a few
 millimetres): shown as it comes, that is a jump. Instead the new frame starts where
-the old one's content was on the display (the rotation that best carries the new
-placement of a few content points onto the old one, :func:`rotation_between`) and
-glides to its own placement with time constant ``glide_s``. A larger change (over
+the old one's content was on the display (the homography that best carries the new
+placement of a grid of content points onto the old one: a change of shape as well as a
+shift) and glides to its own placement with time constant ``glide_s`` (the homography
+eased towards the identity). A larger change (over
 ``max_glide`` of the margin: a re-aim, other content) is shown at once.
 
 Threads (on the device, :func:`run_display`): the display thread owns the display and
@@ -39,10 +40,11 @@ as it always was.
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import cv2
@@ -54,18 +56,16 @@ from adaproj_edge.app.telemetry import Telemetry
 from adaproj_edge.arrays import FloatArray, Image
 from adaproj_edge.errors import AdaprojError
 from adaproj_edge.geometry.projector import Projector
-from adaproj_edge.geometry.rotations import rotation_matrix, rotation_vector
 from adaproj_edge.hal.clock import Clock
 from adaproj_edge.hal.display import Display
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.motion.stabiliser import Stabiliser
 from adaproj_edge.render.content_points import content_points, frame_pixels
 from adaproj_edge.render.reproject import (
+    inner_corners,
     inset_warp,
     map_points,
-    margin_usage,
     reproject,
-    rotation_between,
     rotation_homography,
 )
 from adaproj_edge.warp.warpmap import Warp
@@ -102,8 +102,11 @@ class Refresh:
     sample_ns : int or None
         Sensor time of the newest IMU sample the correction used.
     C : (3, 3) float array
-        The correction shown: the glide between frames times the stabiliser's
-        (identity when stabilisation is off).
+        The stabiliser's correction (a rotation; identity when stabilisation is off).
+    glide : (3, 3) float array
+        The glide between rendered frames (a homography from the corrected display's
+        pixels to the rendered frame's): the frame is drawn with
+        ``glide @ K C K^-1``.
     usage : float
         Share of the margin the correction used.
     compute_s : float
@@ -117,6 +120,7 @@ class Refresh:
     lit_ns: int
     sample_ns: int | None
     C: FloatArray
+    glide: FloatArray
     usage: float
     compute_s: float
     shown: Shown | None
@@ -175,7 +179,7 @@ class DisplayLoop:
         self._out = np.zeros(shape, np.uint8)
         self._marks: list[str] = []
         self._shown: Shown | None = None
-        self._glide = np.zeros(3)  # rotation vector of the glide when published
+        self._glide = np.eye(3)  # the glide's homography when published
         self._glide_ns = 0
         self._imu_lock = threading.Lock()
         self._frame_lock = threading.Lock()
@@ -214,13 +218,16 @@ class DisplayLoop:
             self.display.show(draw_status(frame, marks))
 
     def _glide_at(self, t_ns: int) -> FloatArray:
-        """The glide's rotation (3, 3) at ``t_ns``."""
+        """The glide's homography (3, 3) at ``t_ns``: from a pixel of the corrected
+        display to the rendered frame's."""
         age = max(0, t_ns - self._glide_ns) * 1e-9
-        return rotation_matrix(self._glide * np.exp(-age / self.settings.glide_s))
+        a = math.exp(-age / self.settings.glide_s)
+        out: FloatArray = np.eye(3) + a * (self._glide - np.eye(3))
+        return out
 
     def _glide_to(self, new: Shown, t_ns: int) -> FloatArray:
-        """The glide (rotation vector) that starts ``new`` where the frame shown now
-        puts its content; zero when there is nothing to glide from."""
+        """The glide (homography, 3 x 3) that starts ``new`` where the frame shown now
+        puts its content; the identity when there is nothing to glide from."""
         old = self._shown
         s = self.settings
         if (
@@ -234,20 +241,27 @@ class DisplayLoop:
             or old.content != new.content
             or old.warp.content_size != new.warp.content_size
         ):
-            return np.zeros(3)
+            return np.eye(3)
         margin = s.stabiliser.margin
         pts = content_points(new.warp.content_size)
         u_old = frame_pixels(inset_warp(old.warp, margin), pts)
         u_new = frame_pixels(inset_warp(new.warp, margin), pts)
         with self._frame_lock:
             G_old = self._glide_at(t_ns)
-        u_old = map_points(rotation_homography(self.K, G_old.T), u_old)
-        M = rotation_between(self.K, u_new, u_old)  # = G^T
-        p = self.stabiliser.size
-        if margin_usage(self.K, M.T, p, margin) > s.max_glide:
-            return np.zeros(3)
-        out: FloatArray = rotation_vector(M.T)
-        return out
+        u_old = map_points(np.linalg.inv(G_old), u_old)
+        ok = np.isfinite(u_new).all(axis=1) & np.isfinite(u_old).all(axis=1)
+        if ok.sum() < 4:
+            return np.eye(3)
+        A, _ = cv2.findHomography(u_new[ok], u_old[ok], 0)
+        if A is None or not np.all(np.isfinite(A)):
+            return np.eye(3)
+        w, h = self.stabiliser.size
+        corners = inner_corners((w, h), margin)
+        d = np.abs(map_points(A, corners) - corners)
+        if max(d[:, 0].max() / (margin * w), d[:, 1].max() / (margin * h)) > s.max_glide:
+            return np.eye(3)
+        out: FloatArray = np.linalg.inv(A)
+        return out / out[2, 2]
 
     # ------------------------------------------------------------------ refreshes
     def prepare(self, vsync_ns: int) -> Refresh:
@@ -266,11 +280,10 @@ class DisplayLoop:
         C = correction.C
         with self._frame_lock:
             src = self._buffers[self._current]
+            glide = self._glide_at(lit_ns) if self.stabilising else np.eye(3)
             if self.stabilising:
-                C = self._glide_at(lit_ns) @ C
-                reproject(
-                    src, rotation_homography(self.K, C), self._out, self.settings.interpolation
-                )
+                H = glide @ rotation_homography(self.K, C)
+                reproject(src, H, self._out, self.settings.interpolation)
             else:
                 np.copyto(self._out, src)
             mark_faults(self._out, self._marks)
@@ -281,7 +294,9 @@ class DisplayLoop:
         times.add("reproject", t2 - t1)
         times.add("refresh", t2 - t0)
         times.add("refresh_cpu", cpu)
-        return Refresh(vsync_ns, vsync_ns, lit_ns, sample_ns, C, correction.usage, cpu, shown)
+        return Refresh(
+            vsync_ns, vsync_ns, lit_ns, sample_ns, C, glide, correction.usage, cpu, shown
+        )
 
     def show_prepared(self) -> None:
         """Hand the prepared frame to the display."""
@@ -316,7 +331,7 @@ class DisplayLoop:
 
 
 def _handed(r: Refresh, handed_ns: int) -> Refresh:
-    return Refresh(r.vsync_ns, handed_ns, r.lit_ns, r.sample_ns, r.C, r.usage, r.compute_s, r.shown)
+    return replace(r, handed_ns=handed_ns)
 
 
 def run_display(loop: DisplayLoop, clock: Clock, stop: threading.Event) -> None:

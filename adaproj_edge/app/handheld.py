@@ -170,7 +170,7 @@ class HandheldScorer:
         if pose is None:
             return
         R, p = pose
-        H_inv = rotation_homography(self.projector.K, r.C.T)
+        H_inv = rotation_homography(self.projector.K, r.C.T) @ np.linalg.inv(r.glide)
         on_uv = map_points(H_inv, self._frame_pixels(r, inset=self.margin > 0))
         off_uv = self._frame_pixels(r, inset=False)
         on = self._land(R, p, on_uv)

@@ -23,9 +23,9 @@ class DisplaySettings:
 
     refresh_hz: float = 60.0
     lead_s: float = 0.005
-    interpolation: Interpolation = "linear"
+    interpolation: Interpolation = "nearest"
     glide_s: float = 0.3
-    max_glide: float = 1.0
+    max_glide: float = 2.0
     stabiliser: StabiliserSettings = field(default_factory=StabiliserSettings)
 
 

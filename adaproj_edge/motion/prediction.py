@@ -24,13 +24,13 @@ orientation.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
 from adaproj_edge.arrays import FloatArray
-from adaproj_edge.geometry.rotations import rotation_matrix
 
 PredictMethod = Literal["ar", "constant", "none"]
 MAX_ROOT = 1.05  # a fit of a narrow-band oscillation has roots near the unit circle
@@ -116,7 +116,7 @@ class GyroTrack:
             else:
                 prev = self._w[(self._head - 1) % self.capacity]
                 step = 0.5 * (prev + w) - self.bias
-                self.orientation = self.orientation @ rotation_matrix(step * dt)
+                self.orientation = self.orientation @ small_rotation(step * dt)
         self._t[self._head] = t_ns
         self._w[self._head] = w
         self._head = (self._head + 1) % self.capacity
@@ -132,7 +132,7 @@ class GyroTrack:
         if last is None or t_ns <= last or self.settings.method == "none":
             return self.orientation.copy()
         h = (t_ns - last) * 1e-9
-        return self.orientation @ rotation_matrix(self._integral(h))
+        return self.orientation @ small_rotation(self._integral(h))
 
     def _integral(self, h: float) -> FloatArray:
         """The predicted rotation (rotation vector, 3) over the next ``h`` seconds."""
@@ -203,3 +203,23 @@ def _taylor_forward(w: FloatArray, dt: float, h: float) -> FloatArray:
     powers = np.array([h ** (k + 1) / (k + 1) for k in range(deg + 1)])
     out: FloatArray = powers @ c
     return out
+
+
+def small_rotation(r: FloatArray) -> FloatArray:
+    """Rotation matrix (3, 3) of one rotation vector ``r`` (3,) (Rodrigues' formula in
+    scalar arithmetic: the display loop calls it for every gyro sample, where the
+    vectorised :func:`~adaproj_edge.geometry.rotations.rodrigues` costs ten times more)."""
+    x, y, z = float(r[0]), float(r[1]), float(r[2])
+    t2 = x * x + y * y + z * z
+    if t2 < 1e-24:
+        a, b = 1.0, 0.5
+    else:
+        t = math.sqrt(t2)
+        a, b = math.sin(t) / t, (1.0 - math.cos(t)) / t2
+    return np.array(
+        [
+            [1.0 - b * (y * y + z * z), -a * z + b * x * y, a * y + b * x * z],
+            [a * z + b * x * y, 1.0 - b * (x * x + z * z), -a * x + b * y * z],
+            [-a * y + b * x * z, a * x + b * y * z, 1.0 - b * (x * x + y * y)],
+        ]
+    )

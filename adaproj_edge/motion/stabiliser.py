@@ -42,8 +42,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adaproj_edge.arrays import FloatArray
-from adaproj_edge.geometry.rotations import rotation_matrix, rotation_vector
-from adaproj_edge.motion.prediction import GyroTrack, PredictionSettings
+from adaproj_edge.geometry.rotations import rotation_vector
+from adaproj_edge.motion.prediction import GyroTrack, PredictionSettings, small_rotation
 from adaproj_edge.motion.rates import GyroBias, LowPass2
 from adaproj_edge.render.reproject import margin_usage
 
@@ -204,5 +204,5 @@ class Stabiliser:
 
 def _toward(R_s: FloatArray, R: FloatArray, a: float) -> FloatArray:
     """``R_s`` moved the fraction ``a`` of the way to ``R`` (geodesic)."""
-    out: FloatArray = R_s @ rotation_matrix(a * rotation_vector(R_s.T @ R))
+    out: FloatArray = R_s @ small_rotation(a * rotation_vector(R_s.T @ R))
     return out

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from adaproj_edge.geometry.rotations import rotation_matrix, rotation_vector
-from adaproj_edge.motion.prediction import GyroTrack, PredictionSettings
+from adaproj_edge.motion.prediction import GyroTrack, PredictionSettings, small_rotation
 
 RATE_HZ = 416.0
 
@@ -95,3 +97,12 @@ def test_a_prediction_from_noise_stays_bounded(seed: int) -> None:
     _feed(track, t, rng.normal(scale=0.05, size=(len(t), 3)))
     R = track.predict(round((t[-1] + 0.02) * 1e9))
     assert np.linalg.norm(rotation_vector(track.orientation.T @ R)) < 0.02 * 0.2
+
+
+@given(
+    st.lists(st.floats(-4.0, 4.0, allow_nan=False), min_size=3, max_size=3),
+    st.sampled_from([1.0, 1e-4, 1e-9, 0.0]),
+)
+def test_small_rotation_is_rodrigues(r: list[float], scale: float) -> None:
+    v = np.array(r) * scale
+    assert np.allclose(small_rotation(v), rotation_matrix(v), atol=1e-14)
