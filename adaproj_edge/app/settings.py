@@ -22,7 +22,7 @@ class DisplaySettings:
     frames shown as rendered)."""
 
     refresh_hz: float = 60.0
-    lead_s: float = 0.005
+    lead_s: float = 0.008
     interpolation: Interpolation = "nearest"
     glide_s: float = 0.3
     max_glide: float = 2.0

@@ -185,6 +185,9 @@ class Stabiliser:
         self._last_step_ns = t_lit_ns
         v = self.deliberate_rate / s.moving_rate
         tau = s.tau_moving_s + (s.tau_still_s - s.tau_moving_s) / (1.0 + v * v)
+        # carried along by the low-passed rate (no lag behind a steady turn or a bias
+        # not yet learnt), then pulled towards the device
+        self.R_s = self.R_s @ small_rotation(self._deliberate.value * dt)
         self.R_s = _toward(self.R_s, R, 1.0 - math.exp(-dt / tau))
         usage = margin_usage(self.K, self.R_s.T @ R, self.size, s.margin)
         self._usage += (usage - self._usage) * (1.0 - math.exp(-dt / s.usage_tau_s))
