@@ -248,20 +248,22 @@ class DisplayLoop:
         u_new = frame_pixels(inset_warp(new.warp, margin), pts)
         with self._frame_lock:
             G_old = self._glide_at(t_ns)
-        u_old = map_points(np.linalg.inv(G_old), u_old)
+        u_old = map_points(np.asarray(np.linalg.inv(G_old), dtype=np.float64), u_old)
         ok = np.isfinite(u_new).all(axis=1) & np.isfinite(u_old).all(axis=1)
         if ok.sum() < 4:
             return np.eye(3)
-        A, _ = cv2.findHomography(u_new[ok], u_old[ok], 0)
-        if A is None or not np.all(np.isfinite(A)):
+        found, _ = cv2.findHomography(u_new[ok], u_old[ok], 0)
+        if found is None or not np.all(np.isfinite(found)):
             return np.eye(3)
+        A = np.asarray(found, dtype=np.float64)
         w, h = self.stabiliser.size
         corners = inner_corners((w, h), margin)
         d = np.abs(map_points(A, corners) - corners)
         if max(d[:, 0].max() / (margin * w), d[:, 1].max() / (margin * h)) > s.max_glide:
             return np.eye(3)
-        out: FloatArray = np.linalg.inv(A)
-        return out / out[2, 2]
+        out: FloatArray = np.asarray(np.linalg.inv(A), dtype=np.float64)
+        out /= out[2, 2]
+        return out
 
     # ------------------------------------------------------------------ refreshes
     def prepare(self, vsync_ns: int) -> Refresh:

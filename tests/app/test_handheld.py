@@ -67,9 +67,9 @@ def test_motion_to_photon_is_counted_at_every_refresh(wall: Path) -> None:
     assert abs(refreshes - 60 * SECONDS) <= 3  # 60 Hz from the first record to the last
     m = h["motion_to_photon_ms"]
     assert refreshes - 3 <= m["n"] <= refreshes  # every refresh after the first sample
-    # a sample is at most a FIFO read (2.5 ms) old when the step starts, lead_s (5 ms)
+    # a sample is at most a FIFO read (2.5 ms) old when the step starts, lead_s (8 ms)
     # before the sync
-    assert 5.0 <= m["median"] <= m["p95"]
+    assert 8.0 <= m["median"] <= m["p95"]
 
 
 def test_replays_with_refreshes_are_deterministic(wall: Path) -> None:
