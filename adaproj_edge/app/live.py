@@ -1,5 +1,10 @@
 """The runtime on the board: one reader thread per device feeding one queue, the
-runtime on the main thread, the SMP server on a thread of its own.
+runtime on the main thread, the SMP server on a thread of its own, and the display
+thread (:func:`~adaproj_edge.app.display_loop.run_display`), which owns the projector:
+it waits for each refresh and shows the last frame the runtime rendered, stabilised
+with the gyro. The IMU's reader hands every sample to the display loop directly (the
+runtime's queue would hold it back while a depth frame is processed) as well as to
+the queue.
 
 A device that fails is reported to the runtime (status mark), closed, and opened again
 every ``retry_s``; the projector keeps the last good frame meanwhile.
@@ -19,11 +24,12 @@ import logging
 import queue
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Protocol, TypeVar
 
 from adaproj_edge.app.content import builtin_item
+from adaproj_edge.app.display_loop import run_display
 from adaproj_edge.app.inputs import RECORDED, Input, SourceFault, feed
 from adaproj_edge.app.memory import pin_mmap_threshold
 from adaproj_edge.app.runtime import Runtime
@@ -123,9 +129,10 @@ def _close(src: _Source) -> None:
 @dataclass
 class Device:
     """What :func:`run_loop` runs: the runtime, the link (server and port, ``None``
-    without a link), the input sources, optionally a session being recorded, and the
+    without a link), the input sources, optionally a session being recorded, the
     calibration the hold gesture runs (``None``: the gesture is answered "no
-    calibration on this device")."""
+    calibration on this device"), and whether a display thread shows the runtime's
+    frames at each refresh (otherwise the runtime shows each frame as it renders it)."""
 
     runtime: Runtime
     server: Server
@@ -134,10 +141,12 @@ class Device:
     clock: Clock
     tap: SessionTap | None = None
     calibrate: Calibrate | None = field(default=None)
+    refresh: bool = False
 
 
 class _Readers:
-    """The source threads, stopped and started again around a calibration."""
+    """The source threads and the display thread, stopped and started again around a
+    calibration (which shows its own patterns on the projector)."""
 
     def __init__(self, device: Device, out: queue.Queue[Input], retry_s: float) -> None:
         self.device, self.out, self.retry_s = device, out, retry_s
@@ -155,6 +164,15 @@ class _Readers:
             )
             for src in self.device.sources
         ]
+        if self.device.refresh:
+            self.threads.append(
+                threading.Thread(
+                    target=run_display,
+                    args=(self.device.runtime.screen, self.device.clock, self.halt),
+                    daemon=True,
+                    name="display",
+                )
+            )
         for t in self.threads:
             t.start()
 
@@ -241,6 +259,14 @@ def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float
             log.info("recorded %d records to %s", n, tap.writer.path)
 
 
+def board_settings(board: Board, settings: AppSettings) -> AppSettings:
+    """``settings`` with the board's display: refresh rate and stabilisation margin."""
+    d = settings.display
+    stabiliser = replace(d.stabiliser, margin=board.display.stabilise_margin)
+    display = replace(d, refresh_hz=board.display.refresh_hz, stabiliser=stabiliser)
+    return replace(settings, display=display)
+
+
 def run_device(
     board: Board,
     store_dir: Path,
@@ -254,9 +280,13 @@ def run_device(
     pin_mmap_threshold()
     clock = MonotonicClock()
     calibration = board.calibration()
-    display = FramebufferDisplay(board.display_device)
+    settings = board_settings(board, settings or AppSettings())
+    display = FramebufferDisplay(
+        board.display.device, clock=clock, refresh_hz=board.display.refresh_hz
+    )
     runtime = Runtime(calibration, display, clock, [builtin_item()], settings, state_dir=state_dir)
     imu_held, depth_held, button_held = _Held(), _Held(), _Held()
+    runtime.imu_direct = True  # the IMU's reader feeds the display loop itself
 
     def open_imu() -> Reader:
         bus = open_i2c(board.imu.bus)
@@ -267,8 +297,10 @@ def run_device(
 
         def read() -> ImuSample | None:
             s = imu.read()
-            if s is None:
-                clock.sleep_until(clock.now_ns() + int(0.5e9 / board.imu.config.rate_hz))
+            if s is None:  # the FIFO is empty: about a sample's time until the next
+                clock.sleep_until(clock.now_ns() + int(1e9 / board.imu.config.rate_hz))
+            else:
+                runtime.screen.on_imu(s)
             return s
 
         return read
@@ -303,7 +335,7 @@ def run_device(
             meta = {"source": "device", "board": board.name, "command": "run"}
             tap = SessionTap(SessionWriter(record, calibration, meta, clock.now_ns()), clock)
             log.info("recording to %s", record)
-        device = Device(runtime, server, port, sources, clock, tap, calibrate)
+        device = Device(runtime, server, port, sources, clock, tap, calibrate, refresh=True)
         run_loop(device, retry_s=retry_s)
     finally:
         display.close()

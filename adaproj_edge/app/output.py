@@ -1,6 +1,7 @@
 """What the projector shows: the current warp's maps, drawn into one reused frame
-buffer, marked with the active faults, handed to the display and to the frame hook
-(replays record what was shown)."""
+buffer, handed to the display loop (which marks the active faults on it and shows it
+at each refresh, :mod:`adaproj_edge.app.display_loop`) and to the frame hook (replays
+record what was shown)."""
 
 from __future__ import annotations
 
@@ -10,12 +11,12 @@ from typing import Any
 import cv2
 import numpy as np
 
+from adaproj_edge.app.display_loop import DisplayLoop, Shown
 from adaproj_edge.app.status import Faults, draw_status
 from adaproj_edge.app.telemetry import Telemetry
 from adaproj_edge.arrays import Image
 from adaproj_edge.errors import ImageError
 from adaproj_edge.hal.clock import Clock
-from adaproj_edge.hal.display import Display
 from adaproj_edge.render.frame import RemapMaps, render_frame
 from adaproj_edge.warp.warpmap import Warp
 
@@ -28,7 +29,8 @@ class Output:
 
     Parameters
     ----------
-    display : Display
+    screen : DisplayLoop
+        Where frames go (shown at the next refresh, or at once before the loop runs).
     clock : Clock
         Time stamps for the frame hook.
     faults : Faults
@@ -41,14 +43,14 @@ class Output:
 
     def __init__(
         self,
-        display: Display,
+        screen: DisplayLoop,
         clock: Clock,
         faults: Faults,
         telemetry: Telemetry,
         size: tuple[int, int],
         on_frame: FrameHook | None = None,
     ) -> None:
-        self.display = display
+        self.screen = screen
         self.clock = clock
         self.faults = faults
         self.telemetry = telemetry
@@ -58,6 +60,8 @@ class Output:
         self.maps: RemapMaps | None = None
         self._good: Image | None = None
         self._canvas: Image | None = None
+        self._kind = "plain"
+        self.content = ""  # the name of the content shown (set by the runtime)
 
     @property
     def clean_frame(self) -> Image | None:
@@ -81,6 +85,7 @@ class Output:
             if frame.ndim == 2:
                 frame = np.asarray(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR), np.uint8)
         self._good = frame
+        self._kind = kind
         with times.timer("show"):
             out = self._show(frame)
         if notify:
@@ -107,8 +112,11 @@ class Output:
         return bytes(enc.tobytes())
 
     def _show(self, frame: Image) -> Image:
-        out = draw_status(frame, self.faults.kinds())
-        self.display.show(out)
+        kinds = self.faults.kinds()
+        out = draw_status(frame, kinds)
         self.frame = out
         self.telemetry.count("frames_shown")
+        n = self.telemetry.counters["frames_shown"]
+        shown = Shown(n, self._kind, self.warp, self.content)
+        self.screen.publish(frame, kinds, shown, self.clock.now_ns())
         return out

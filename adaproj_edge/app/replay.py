@@ -11,9 +11,18 @@ raises) are listed in the session's metadata (``session`` record, key ``app_faul
 JSON list of ``{"kind": "imu" | "camera", "start_s", "end_s"}``, seconds from the first
 record); the replay turns them into the device's fault inputs.
 
+The projector's refreshes are generated on the virtual clock between the records
+(every ``1 / refresh_hz`` from the first record; each computed ``lead_s`` before its
+sync, from the records received by then): the display loop shows the last frame,
+stabilised (:mod:`adaproj_edge.app.display_loop`), its compute time measured and the
+wait for the sync modelled, so the decisions and the frames stay the same on any
+machine.
+
 With the session's ground truth (simulated sessions) each content-aware frame is
-scored (:mod:`adaproj_edge.app.scoring`). Serial traffic goes through the device's own
-SMP server (:mod:`adaproj_edge.app.link_replay`).
+scored (:mod:`adaproj_edge.app.scoring`) and every refresh is followed onto the true
+surface (:mod:`adaproj_edge.app.handheld`: jitter, drift, upright; ``handheld.png``
+shows the content's motion with stabilisation on and off). Serial traffic goes
+through the device's own SMP server (:mod:`adaproj_edge.app.link_replay`).
 """
 
 from __future__ import annotations
@@ -28,9 +37,12 @@ from pathlib import Path
 from typing import Any
 
 from adaproj_edge.app.content import builtin_item, mask_content_map
+from adaproj_edge.app.display_loop import refresh_summary
+from adaproj_edge.app.handheld import HandheldScorer
 from adaproj_edge.app.inputs import Input, SourceFault, feed
 from adaproj_edge.app.link_replay import LinkReplay
 from adaproj_edge.app.memory import pin_mmap_threshold, rss_mb
+from adaproj_edge.app.motion_plot import motion_plot
 from adaproj_edge.app.report import (
     FrameSampler,
     clear_outputs,
@@ -51,7 +63,7 @@ from adaproj_edge.session import schemas
 from adaproj_edge.session.player import Replay
 from adaproj_edge.session.reader import Scan, iter_records
 from adaproj_edge.session.records import SerialTraffic, TruthPose
-from adaproj_edge.session.simulator import scene_of_session
+from adaproj_edge.session.simulator import HAND_KEY, scene_of_session, scoring_projector
 
 log = logging.getLogger(__name__)
 
@@ -85,8 +97,17 @@ class ReplayOptions:
     all_frames: bool = False
     score: bool = True
     side_views: bool = True  # a few moments seen from the side, in the contact sheet
+    stabilise: bool = True  # False: the display loop shows frames as rendered (margin 0)
     # replaces the session's calibration (its depth model stays the session's)
     calibration: Calibration | None = None
+
+    def app_settings(self) -> AppSettings:
+        """The runtime's settings for this replay."""
+        s = replace(self.settings, keep_shown_map=self.score)
+        if not self.stabilise:
+            d = s.display
+            s = replace(s, display=replace(d, stabiliser=replace(d.stabiliser, margin=0.0)))
+        return s
 
 
 def session_faults(metadata: dict[str, dict[str, str]]) -> list[InjectedFault]:
@@ -155,16 +176,27 @@ def _replay(
     cal = replay.calibration
     if options.calibration is not None:
         cal = options.calibration.with_depth(cal.depth)
-    display = MemoryDisplay(cal.projector.width, cal.projector.height)
-    settings = replace(options.settings, keep_shown_map=options.score)
+    settings = options.app_settings()
+    display = MemoryDisplay(cal.projector.width, cal.projector.height, replay.clock)
     rt = Runtime(cal, display, replay.clock, [builtin_item()], settings, mask_content_map, frames)
     link = LinkReplay(store, rt)
     scorer = None
+    handheld = None
     side = SideViews(rt) if options.side_views and out_dir is not None else None
     spec_raw = scan.attachments.get(schemas.TRUTH_SURFACE_ATTACHMENT)
     if options.score and spec_raw is not None:
         scene = scene_of_session(json.loads(spec_raw), scan.attachments)
         scorer = Scorer(scene, rt, scan.attachments)
+        handheld = HandheldScorer(
+            scene,
+            scoring_projector(scan.attachments, cal.projector),
+            settings.display.stabiliser.margin,
+            _hand(scan.metadata),
+        )
+        rt.screen.on_refresh = handheld.on_refresh
+    period_ns = rt.screen.period_ns
+    lead_ns = round(settings.display.lead_s * 1e9)
+    vsync = 0
     t0: int | None = None
     rss: list[float] = []
     pose: TruthPose | None = None
@@ -176,6 +208,10 @@ def _replay(
             t0 = rec.receive_ns
             frames.t0 = t0
             rt.boot()
+            vsync = t0 + period_ns
+        while vsync - lead_ns < rec.receive_ns:  # refreshes computed before this record
+            rt.screen.refresh(vsync)
+            vsync += period_ns
         rt.tick()
         if isinstance(rec, DepthFrame | ImuSample | ButtonEvent):
             feed(rt, _injected(rec, faults, (rec.receive_ns - t0) / 1e9))
@@ -186,6 +222,8 @@ def _replay(
                     _score(rt, scorer, side, pose)
         elif isinstance(rec, TruthPose):
             pose = rec
+            if handheld is not None:
+                handheld.add_truth(rec)
         elif isinstance(rec, SerialTraffic):
             link.feed(rec)
         if rt.calibration_wanted:  # the hold gesture: no devices to hand over here
@@ -197,6 +235,11 @@ def _replay(
     rt.tick()
     rss.append(round(rss_mb(), 1))
     pictures = [] if side is None else side.pictures(t0)
+    hand_section = {**refresh_summary(rt.telemetry), "margin": settings.display.stabiliser.margin}
+    if handheld is not None:
+        handheld.finish()
+        hand_section.update(handheld.summary())
+        frames.handheld_plot = _plot(handheld, t0)
     result = summary(
         path.name,
         rt.telemetry,
@@ -209,11 +252,33 @@ def _replay(
         distortion_measures=MEASURES,
         rss_mb=rss,
         link=link.summary(t0),
+        handheld=hand_section,
     )
     if result["link"]["rx_bytes"]:
         log.info("link: %s", {k: v for k, v in result["link"].items() if k != "mismatched"})
     frames.side_views = pictures
     return result, frames
+
+
+def _hand(metadata: dict[str, dict[str, str]]) -> dict[str, Any] | None:
+    """The simulated hand's intent recorded in the session, if any."""
+    raw = metadata.get("session", {}).get(HAND_KEY)
+    if raw is None:
+        return None
+    try:
+        hand = json.loads(raw)
+    except ValueError as e:
+        raise InputError(f"session metadata {HAND_KEY} is malformed: {e}") from None
+    return hand if isinstance(hand, dict) else None
+
+
+def _plot(handheld: HandheldScorer, t0: int) -> Any:
+    """The content's centre on the surface, stabilised and not (None: nothing scored)."""
+    t, on, off = handheld.trajectories()
+    if len(t) < 2:
+        return None
+    centre = len(on[0]) - 3 - (len(on[0]) - 2) // 2  # the middle of the content grid
+    return motion_plot((t - t0) / 1e9, on[:, centre], off[:, centre])
 
 
 def _score(

@@ -1,5 +1,6 @@
-"""What a replay writes: a sample of the projected frames, ``summary.json`` and the
-contact sheet."""
+"""What a replay writes: a sample of the projected frames, ``summary.json``, the
+contact sheet and (simulated sessions) ``handheld.png``, the content's motion on the
+surface with stabilisation on and off."""
 
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ class FrameSampler:
         self.checksums: list[dict[str, Any]] = []
         self.t0 = 0
         self.side_views: list[tuple[list[Image], list[str]]] = []
+        self.handheld_plot: Image | None = None
 
     def __call__(self, t_ns: int, frame: Image, info: dict[str, Any]) -> None:
         """Take the frame shown at ``t_ns``: a checksum of every frame (mean BGR), PNGs of an
@@ -112,7 +114,7 @@ def summary(
     }
 
 
-OUTPUTS = ("summary.json", "contact_sheet.png")
+OUTPUTS = ("summary.json", "contact_sheet.png", "handheld.png")
 
 
 def clear_outputs(out: Path) -> None:
@@ -141,3 +143,5 @@ def write_outputs(out: Path, summary: dict[str, Any], frames: FrameSampler) -> N
     rows += [row(images, captions, 300) for images, captions in frames.side_views]
     if rows:
         cv2.imwrite(str(out / "contact_sheet.png"), stack(rows))
+    if frames.handheld_plot is not None:
+        cv2.imwrite(str(out / "handheld.png"), frames.handheld_plot)

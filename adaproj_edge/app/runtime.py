@@ -37,10 +37,13 @@ listed in :meth:`Runtime.status`, and the next good input clears it.
 
 The data path of one depth frame: :class:`~adaproj_edge.app.surfaces.SurfaceSource`
 (estimate, average, snap walls) -> :class:`~adaproj_edge.app.warps.WarpSource` (the
-warp planner, the pose cache, the display-map builder) -> ``render_frame`` -> the
-display. The runtime never reads a clock of its own for decisions: time is the
-injected clock's, so a replay on a virtual clock makes the same decisions every time
-(stage times are measured and only reported). It implements the link's
+warp planner, the pose cache, the display-map builder; "up" is gravity, from the
+accelerometer) -> ``render_frame`` -> the display loop
+(:class:`~adaproj_edge.app.display_loop.DisplayLoop`), which shows the last frame at
+every refresh of the projector, stabilised with the gyro. The runtime never reads a
+clock of its own for decisions: time is the injected clock's, so a replay on a
+virtual clock makes the same decisions every time (stage times are measured and only
+reported). It implements the link's
 :class:`~adaproj_edge.link.device.DeviceRuntime`; content arriving from the link's
 thread is queued and taken up by the runtime's own thread.
 
@@ -62,6 +65,7 @@ from typing import Any
 import numpy as np
 
 from adaproj_edge.app.content import ContentMapFn, Inbox, Item, SaliencyMaps, load_item
+from adaproj_edge.app.display_loop import DisplayLoop
 from adaproj_edge.app.gestures import Gesture, Gestures
 from adaproj_edge.app.laststate import LastWarp
 from adaproj_edge.app.output import FrameHook, Output
@@ -81,8 +85,10 @@ from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.display import Display
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.link.device import Content
+from adaproj_edge.motion.gravity import GravityFilter
 from adaproj_edge.motion.tracker import MotionTracker
 from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.placement import DEFAULT_UP
 from adaproj_edge.warp.warpmap import Warp
 
 log = logging.getLogger(__name__)
@@ -124,6 +130,7 @@ class Runtime:
         self.last_warp = LastWarp(state_dir)
         self.telemetry = t = Telemetry(s.history)
         self.motion = MotionTracker(calibration.R_P_I, s.motion)
+        self.gravity = GravityFilter(s.gravity)
         self.gestures = Gestures(s.double_press_s, s.long_press_s, s.calibrate_hold_s)
         self.surfaces = SurfaceSource(calibration, s, t.times)
         self.warps = WarpSource(calibration.projector, s, t)
@@ -131,7 +138,9 @@ class Runtime:
         self.state = State.BOOT
         self.plain = False
         p = calibration.projector
-        self.output = Output(display, clock, self.faults, t, (p.width, p.height), on_frame)
+        self.screen = DisplayLoop(display, p, calibration.R_P_I, s.display, t)
+        self.imu_direct = False  # True: the IMU's reader feeds self.screen itself (live)
+        self.output = Output(self.screen, clock, self.faults, t, (p.width, p.height), on_frame)
         self.shown_map: Float32Array | None = None  # kept for scoring (keep_shown_map)
         self.surface: Surface | None = None  # the surface shown, and its frames averaged
         self._surface_frames = 1
@@ -201,6 +210,7 @@ class Runtime:
         warp = self.last_warp.load(self.calibration.projector, self.item.size)
         if warp is not None:
             self.shown_map = None
+            self.output.content = self.item.name
             self.output.set(warp, self.warps.maps(warp))
             self.output.render(self.item.image, "boot", "last-warp")
         else:
@@ -209,9 +219,16 @@ class Runtime:
 
     # ------------------------------------------------------------------ inputs
     def on_imu(self, sample: ImuSample) -> None:
-        """One IMU sample: motion state, orientation."""
+        """One IMU sample: motion state, orientation, gravity, and (unless the IMU's
+        reader feeds it directly) the display loop's stabiliser."""
         self._clear("imu")
+        if not self.imu_direct:
+            self.screen.on_imu(sample)
         change = self.motion.update(sample)
+        R = self.calibration.R_P_I
+        accel = R @ np.asarray(sample.accel, dtype=np.float64)
+        rate = R @ (np.asarray(sample.gyro, dtype=np.float64) - self.motion.bias.value)
+        self.gravity.update(sample.sensor_ns, accel, rate, still=not self.motion.moving)
         if change is True:
             self._motion_ns = sample.receive_ns
             self._event("moving")
@@ -225,6 +242,7 @@ class Runtime:
         """A device that failed to deliver (``source``: "depth", "imu", "button")."""
         if source == "imu":
             self.motion.reset_window()
+            self.screen.imu_fault()
             self._fault("imu", message)
         elif source == "depth":
             self._fault("camera", message)
@@ -363,6 +381,8 @@ class Runtime:
             s, t = self.settings, self.telemetry
             self.calibration = calibration
             self.motion = MotionTracker(calibration.R_P_I, s.motion)
+            self.gravity = GravityFilter(s.gravity)
+            self.screen.recalibrate(calibration.projector, calibration.R_P_I)
             self.surfaces = SurfaceSource(calibration, s, t.times)
             self.warps = WarpSource(calibration.projector, s, t)
             self.surface = None
@@ -393,12 +413,21 @@ class Runtime:
             self._show_plain(reason)
 
     # ------------------------------------------------------------------ warps
+    def up(self) -> tuple[float, float, float]:
+        """The warps' "up" in frame P: gravity, once the accelerometer has settled on it
+        (the projector's -y before)."""
+        g = self.gravity.up
+        if not self.gravity.ready or g is None:
+            return DEFAULT_UP
+        return (float(g[0]), float(g[1]), float(g[2]))
+
     def _warp_settings(self) -> WarpSettings:
         return WarpSettings(
             mode="content",
             grid=self.settings.grid,
             threshold=self.item.settings.threshold,
             max_iterations=self.settings.refine_iterations,
+            up=self.up(),
         )
 
     def _refines(self) -> bool:
@@ -460,6 +489,7 @@ class Runtime:
         self._clear("warp")
         self.surface, self._surface_frames = surface, frames
         self._shown_depth = surface.points[..., 2].astype(np.float64)
+        self.output.content = item.name
         self.output.set(warp, maps)
         frame = self.output.render(item.image, reason, kind, notify=False)
         t_end = time.perf_counter()
@@ -492,6 +522,7 @@ class Runtime:
         )
 
     def _show_plain(self, reason: str) -> None:
+        self.output.content = self.item.name
         self.output.set(*self.warps.plain(self.item.size))
         self.shown_map = None
         self._shown_depth = None

@@ -6,8 +6,27 @@ from dataclasses import dataclass, field
 
 from adaproj_edge.geometry.depth.settings import DepthSettings
 from adaproj_edge.geometry.planes import PlaneSettings
+from adaproj_edge.motion.gravity import GravitySettings
+from adaproj_edge.motion.stabiliser import StabiliserSettings
 from adaproj_edge.motion.tracker import MotionSettings
+from adaproj_edge.render.reproject import Interpolation
 from adaproj_edge.warp.warpmap import Grid
+
+
+@dataclass(frozen=True)
+class DisplaySettings:
+    """The display loop (:mod:`adaproj_edge.app.display_loop`): refreshes per second,
+    how long before a refresh its frame is computed (seconds), how it is resampled, the
+    time constant of the glide from one rendered frame's placement to the next's (and
+    the largest glide, as a share of the margin), and the stabiliser (its ``margin`` 0:
+    frames shown as rendered)."""
+
+    refresh_hz: float = 60.0
+    lead_s: float = 0.008
+    interpolation: Interpolation = "nearest"
+    glide_s: float = 0.3
+    max_glide: float = 2.0
+    stabiliser: StabiliserSettings = field(default_factory=StabiliserSettings)
 
 
 @dataclass(frozen=True)
@@ -38,7 +57,11 @@ class AppSettings:
     cache_match_rel: float = 0.01  # a cached warp serves surfaces this close (median depth)
     orientation_bin_rad: float = 0.03
     depth_bin_m: float = 0.03
+    up_bin_rad: float = 0.01  # "up" (gravity) in the pose cache key
+    up_match_rad: float = 0.005  # a cached warp serves an "up" this close
     motion: MotionSettings = field(default_factory=MotionSettings)
+    gravity: GravitySettings = field(default_factory=GravitySettings)
+    display: DisplaySettings = field(default_factory=DisplaySettings)
     depth: DepthSettings = field(default_factory=DepthSettings)
     planes: PlaneSettings | None = field(default_factory=PlaneSettings)  # None: no snapping
 

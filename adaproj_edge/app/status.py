@@ -60,9 +60,15 @@ def draw_status(frame: Image, faults: list[str]) -> Image:
     if not faults:
         return frame
     out = frame.copy()
-    w = out.shape[1]
+    mark_faults(out, faults)
+    return out
+
+
+def mark_faults(frame: Image, faults: list[str]) -> None:
+    """Draw a small square per fault into the top-right corner of ``frame`` (H, W, 3
+    or 4), in place."""
+    w = frame.shape[1]
     for i, kind in enumerate(faults):
         x1 = w - 8 - i * 20
         colour = MARK_COLOURS.get(kind, (0, 255, 255))
-        cv2.rectangle(out, (x1 - 12, 8), (x1, 20), colour, thickness=-1)
-    return out
+        cv2.rectangle(frame, (x1 - 12, 8), (x1, 20), colour, thickness=-1)

@@ -1,5 +1,6 @@
 """What the runtime reports about itself: stage times, counters and a bounded history
-(events, states, updates, motion-to-frame latencies) for status, replays and benchmarks.
+(events, states, updates, motion-to-frame and motion-to-photon latencies) for status,
+replays and benchmarks.
 
 Stage times are wall-clock (``time.perf_counter``) and only reported: no decision
 depends on them, so a replay makes the same decisions whatever the machine's speed.
@@ -26,6 +27,8 @@ COUNTERS = (
     "estimates",
     "skipped_frames",
     "frames_shown",
+    "refreshes",
+    "refresh_misses",
 )
 
 
@@ -89,6 +92,7 @@ class Telemetry:
         self.states: deque[tuple[int, str]] = deque(maxlen=history)
         self.updates: deque[dict[str, Any]] = deque(maxlen=history)
         self.latencies_ms: deque[float] = deque(maxlen=history)
+        self.photon_ms: deque[float] = deque(maxlen=history)  # IMU sample -> display
         self.update_count = 0
 
     def count(self, name: str, n: int = 1) -> None:

@@ -5,8 +5,13 @@ the pose cache between them.
 
 A pose's entry holds its content-free warp, the pixel weights of its mesh (every warp of
 that pose maps through them) and, once shown, the content-free warp's own maps. Lookups
-key on the IMU orientation and a depth signature, and every candidate is checked node by
-node against the current surface (:mod:`adaproj_edge.warp.posecache`).
+key on the IMU orientation, a depth signature and "up" (gravity), and every candidate
+is checked node by node against the current surface and for the same "up" (within
+``up_match_rad``; :mod:`adaproj_edge.warp.posecache`).
+
+Every map drawn for the display has the content inset by the stabilisation margin
+(:func:`~adaproj_edge.render.reproject.inset_warp`): the warps themselves (cached,
+warm-started, saved, probed) are the planner's.
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.display_maps import DisplayMapBuilder
 from adaproj_edge.render.frame import RemapMaps
 from adaproj_edge.render.maps import PixelWeights
+from adaproj_edge.render.reproject import inset_warp
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import WarpCache
 from adaproj_edge.warp.planner import ContentFreeWarp, PlanSettings, WarpPlanner
@@ -44,6 +50,8 @@ class PoseEntry:
         The reduced-resolution pixel weights of its mesh.
     frames : int
         Depth frames averaged into the surface it was made from.
+    up : (3,) float array
+        The "up" (frame P) its content was placed upright with.
     maps : RemapMaps or None
         The content-free warp's own display maps, made when first shown.
     """
@@ -51,6 +59,7 @@ class PoseEntry:
     content_free: ContentFreeWarp
     weights: PixelWeights
     frames: int
+    up: FloatArray
     maps: RemapMaps | None = None
 
     @property
@@ -88,11 +97,16 @@ class WarpSource:
         self.planner = WarpPlanner(projector, s.grid, plan, cache)
         self.display = DisplayMapBuilder(projector, s.grid.vertices(projector), s.map_scale)
         self.poses: PoseCache[PoseEntry] = PoseCache(s.pose_cache_size if s.caching else 0)
+        self.margin = s.display.stabiliser.margin
+
+    def shown(self, warp: Warp) -> Warp:
+        """``warp`` as drawn: its content inset by the stabilisation margin."""
+        return inset_warp(warp, self.margin)
 
     def maps(self, warp: Warp) -> RemapMaps:
         """The renderer's maps for any warp (one loaded at boot, say)."""
         with self.times.timer("map"):
-            return self.display.maps(warp)
+            return self.display.maps(self.shown(warp))
 
     def plain(self, content_size: tuple[int, int]) -> tuple[Warp, RemapMaps]:
         """The content letterboxed on the frame (no pre-warp), and its maps."""
@@ -123,10 +137,16 @@ class WarpSource:
         """
         s = self.settings
         depth = surface.points[..., 2].astype(np.float64)
-        key = pose_key(orientation, depth, s.orientation_bin_rad, s.depth_bin_m) + content_size
+        up = np.asarray(settings.up, dtype=np.float64)
+        key = pose_key(orientation, depth, s.orientation_bin_rad, s.depth_bin_m, up, s.up_bin_rad)
+        key += content_size
         t_lookup = time.perf_counter()
+
+        def same_up(e: PoseEntry) -> bool:
+            return float(np.linalg.norm(e.up - up)) <= s.up_match_rad
+
         entry = (
-            self.poses.get(key, depth, s.cache_match_rel, min_frames=min_frames)
+            self.poses.get(key, depth, s.cache_match_rel, min_frames=min_frames, accept=same_up)
             if self.caching
             else None
         )
@@ -138,7 +158,7 @@ class WarpSource:
             self.telemetry.count("cache_misses")
             with self.telemetry.times.timer("content_free"):
                 cf = self.planner.content_free(surface, content_size, settings)
-                entry = PoseEntry(cf, self.display.pixel_weights(cf.warp), frames)
+                entry = PoseEntry(cf, self.display.pixel_weights(cf.warp), frames, up)
             self.poses.put(key, entry)
             self.telemetry.count("content_free")
         else:
@@ -150,7 +170,7 @@ class WarpSource:
         """The display maps of a content-free warp (made once per entry)."""
         if entry.maps is None:
             with self.times.timer("map"):
-                entry.maps = self.display.maps(entry.warp, entry.weights)
+                entry.maps = self.display.maps(self.shown(entry.warp), entry.weights)
         return entry.maps
 
     def content_aware(
@@ -165,9 +185,9 @@ class WarpSource:
         with self.times.timer("content_aware"):
             warp = self.planner.refine(surface, content_map, settings, entry.content_free)
         with self.times.timer("map"):
-            maps = self.display.maps(warp, entry.weights)
+            maps = self.display.maps(self.shown(warp), entry.weights)
         return warp, maps
 
     def float_map(self, warp: Warp) -> Float32Array:
         """What the display maps of ``warp`` draw, as floats (H, W, 2) (for scoring)."""
-        return self.display.float_map(warp)
+        return self.display.float_map(self.shown(warp))

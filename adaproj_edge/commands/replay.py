@@ -25,7 +25,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "Writes a sample of the projected frames (every frame with --all-frames), "
         "summary.json (events, states, warps computed, cache hits, stage timings, "
         "motion-to-frame latency, distortion against the ground truth when the session "
-        "has one) and contact_sheet.png.",
+        "has one, the handheld section: jitter, drift, upright, motion-to-photon) and "
+        "contact_sheet.png; simulated sessions also get handheld.png, the content's "
+        "motion on the surface with stabilisation on and off.",
     )
     p.add_argument(
         "session",
@@ -38,6 +40,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--no-cache", action="store_true", help="turn the per-pose warp cache off")
     p.add_argument("--no-warm-start", action="store_true", help="refine from scratch each time")
     p.add_argument("--no-score", action="store_true", help="skip the ground-truth scoring")
+    p.add_argument(
+        "--no-stabilise",
+        action="store_true",
+        help="show each rendered frame as it is at every refresh (no stabilisation margin, "
+        "no correction for the hand's motion)",
+    )
     p.add_argument(
         "--calibration",
         default=None,
@@ -59,7 +67,11 @@ def run(args: argparse.Namespace) -> int:
     settings = replace(AppSettings(), caching=not args.no_cache, warm_start=not args.no_warm_start)
     cal = Calibration.load(args.calibration) if args.calibration else None
     options = ReplayOptions(
-        settings, all_frames=args.all_frames, score=not args.no_score, calibration=cal
+        settings,
+        all_frames=args.all_frames,
+        score=not args.no_score,
+        stabilise=not args.no_stabilise,
+        calibration=cal,
     )
     s = replay_session(args.session, args.out, options)
     c = s["counters"]
@@ -83,11 +95,27 @@ def run(args: argparse.Namespace) -> int:
             f"(warp from the true surface {d['truth_angle_error']:.4f}, "
             f"plain projector {d['plain_angle_error']:.4f})"
         )
+    h = s["handheld"]
+    mtp = h["motion_to_photon_ms"]
+    line = f"  display: {h['refreshes']} refreshes ({h['missed']} late)"
+    if mtp["n"]:
+        line += f", IMU sample -> display {mtp['median']} ms median, {mtp['p95']} ms p95"
+    print(line)
+    if h.get("jitter_mm_rms") is not None:
+        print(
+            f"  on the surface: jitter {h['jitter_mm_rms']} mm RMS (not stabilised "
+            f"{h['jitter_off_mm_rms']} mm), upright within {h['upright_error_deg_max']} deg"
+            + (f", drift {h['drift_mm_10s']} mm over 10 s" if h.get("drift_mm_10s") else "")
+        )
     damage = s["session_file"]["damage"]
     if damage is not None:
         print(f"adaproj replay: warning: {Path(args.session).name}: {damage}", file=sys.stderr)
     if args.out:
-        print(f"wrote {args.out}/summary.json, {args.out}/contact_sheet.png, {args.out}/frames/")
+        extra = ", handheld.png" if (Path(args.out) / "handheld.png").exists() else ""
+        print(
+            f"wrote {args.out}/summary.json, {args.out}/contact_sheet.png{extra}, "
+            f"{args.out}/frames/"
+        )
     else:
         log.debug("%s", json.dumps(s["counters"]))
     return 0

@@ -11,6 +11,18 @@ triangle only). The search starts from a coarse raster (the pixel with the large
 chessboard distance to the outside, from ``cv2.distanceTransform``) and then climbs
 ``r(c)`` exactly with a shrinking pattern search, so the result is exact, not limited by
 the raster, and inside the region by construction.
+
+Content turned upright in a rolled projector's frame meets a region whose sides are
+not axis-aligned: ``r`` then has a sharp ridge running obliquely along the sides the
+square touches (falling at a slope of about 1 across it, by a fraction of a per cent
+along it), which the eight directions of the pattern cannot follow; the pattern also
+steps along the region's two dominant side directions (:func:`side_directions`). Along
+such a ridge ``r`` is nearly flat, often with a maximum at either end that wins by
+0.1 % one frame and loses the next: consecutive frames would place the content
+centimetres apart. With ``near`` > 0 (:func:`~adaproj_edge.warp.placement.place` asks
+for it when the content is turned) the centre taken is the one nearest the region's
+area centroid, on the way from there to the best centre found, whose square is within
+``near`` of the largest: centred, at most ``near`` smaller.
 """
 
 from __future__ import annotations
@@ -31,6 +43,7 @@ _DIRECTIONS = np.array(
 )
 _SCALES = np.array([1.0, 0.5, 0.25, 0.125])
 _PATTERN = _SCALES[:, None, None] * _DIRECTIONS[None]  # (4, 8, 2)
+NEAR = 0.03
 
 
 @dataclass(frozen=True)
@@ -98,6 +111,7 @@ def inscribed_rectangle(
     resolution: int = RASTER,
     boundary: IntArray | None = None,
     start: FloatArray | None = None,
+    near: float = 0.0,
 ) -> Rect:
     """Largest rectangle of ``aspect`` (width / height) inside the union of triangles.
 
@@ -117,6 +131,9 @@ def inscribed_rectangle(
     start : (2,) float array, optional
         A centre to climb from instead of the raster's (warm start: the previous
         rectangle's centre while the mesh changes a little).
+    near : float
+        When positive, the centre nearest the region's centroid whose rectangle is
+        within this fraction of the largest (0: the largest the search finds).
     """
     if tris.size == 0:
         raise WarpError("no surface triangles to place the content on")
@@ -125,6 +142,9 @@ def inscribed_rectangle(
     p0, p1 = q[edges[:, 0]], q[edges[:, 1]]
     extent = float(np.max(np.ptp(q, axis=0)))
     tol = 1e-4 * extent
+    sides = side_directions(p1 - p0)
+    directions = np.concatenate([_DIRECTIONS, sides, -sides])
+    pattern = _SCALES[:, None, None] * directions[None]
     r = -1.0
     if start is not None:
         c = np.asarray(start, dtype=np.float64) * np.array([1.0, aspect])
@@ -136,18 +156,76 @@ def inscribed_rectangle(
         c, step = _raster_start(q, tris, resolution)
         r = float(linf_clearance(c, p0, p1))
     # pattern search, four step sizes per evaluation (step, step/2, step/4, step/8):
-    # move to the best trial that improves r and carry on at its step size; when none
-    # does, the step shrinks 16-fold
+    # move to the best trial that improves the objective and carry on at its step size;
+    # when none does, the step shrinks 16-fold
     while step > tol:
-        trial = (c + step * _PATTERN).reshape(-1, 2)
+        trial = (c + step * pattern).reshape(-1, 2)
         rt = linf_clearance(trial, p0, p1)
         k = int(np.argmax(rt))
         if rt[k] > r:
             c, r = trial[k], float(rt[k])
-            step *= _SCALES[k // _DIRECTIONS.shape[0]]
+            step *= _SCALES[k // len(directions)]
         else:
             step *= _SCALES[-1] / 2
+    if near > 0:
+        c, r = _nearest_to(_centroid(q, tris), c, r, near, q, tris, p0, p1)
     return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
+
+
+def side_directions(d: FloatArray, bins: int = 180) -> FloatArray:
+    """The two dominant directions (2, 2) of segments ``d`` (E, 2): the length-weighted
+    peaks of their angle histogram (modulo 180 degrees, the second at least 20 degrees
+    from the first), each the weighted mean direction of its peak's segments."""
+    length = np.linalg.norm(d, axis=1)
+    angle = np.mod(np.arctan2(d[:, 1], d[:, 0]), np.pi)
+    k = np.minimum((angle / np.pi * bins).astype(int), bins - 1)
+    hist = np.bincount(k, weights=length, minlength=bins)
+    smooth = hist + np.roll(hist, 1) + np.roll(hist, -1)
+    first = int(np.argmax(smooth))
+    gap = np.abs((np.arange(bins) - first + bins // 2) % bins - bins // 2)
+    second = int(np.argmax(np.where(gap >= bins // 9, smooth, -1.0)))
+    out = []
+    for b in (first, second):
+        near = np.abs((k - b + bins // 2) % bins - bins // 2) <= 1
+        # double the angles so that directions 180 degrees apart add up
+        z = np.sum(length[near] * np.exp(2j * angle[near]))
+        a = 0.5 * np.angle(z) if abs(z) > 0 else (b + 0.5) * np.pi / bins
+        out.append([np.cos(a), np.sin(a)])
+    return np.array(out)
+
+
+def _nearest_to(
+    g: FloatArray,
+    c: FloatArray,
+    r: float,
+    near: float,
+    q: FloatArray,
+    tris: IntArray,
+    p0: FloatArray,
+    p1: FloatArray,
+) -> tuple[FloatArray, float]:
+    """The centre nearest ``g`` on the segment from ``g`` to ``c`` (the best centre,
+    clearance ``r``) inside the region whose clearance is within ``near`` of ``r``."""
+    t = np.linspace(0.0, 1.0, 65)[:, None]
+    pts = g + t * (c - g)
+    rs = linf_clearance(pts, p0, p1)
+    for k in np.flatnonzero(rs >= (1.0 - near) * r):
+        if _inside(pts[k], q, tris):
+            return pts[k], float(rs[k])
+    return c, r
+
+
+def _centroid(v: FloatArray, tris: IntArray) -> FloatArray:
+    """The area centroid (2,) of the triangles ``tris`` over vertices ``v`` (n, 2)."""
+    a, b, d = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
+    e1, e2 = b - a, d - a
+    area = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    total = float(area.sum())
+    if total <= 0:
+        out: FloatArray = v.mean(axis=0)
+        return out
+    out = (area[:, None] * (a + b + d) / 3.0).sum(axis=0) / total
+    return out
 
 
 def _inside(c: FloatArray, v: FloatArray, tris: IntArray) -> bool:

@@ -8,7 +8,7 @@ Format::
     chip = "lsm6dsox"
     bus = 1                # /dev/i2c-1
     address = 0x6A
-    rate_hz = 208.0
+    rate_hz = 416.0
     accel_range_g = 4
     gyro_range_dps = 500
     [button]
@@ -16,6 +16,8 @@ Format::
     key_code = 28          # KEY_ENTER, as set in the gpio-keys overlay
     [display]
     device = "/dev/fb0"
+    refresh_hz = 60.0          # used when the driver cannot wait for vertical sync
+    stabilise_margin = 0.04    # room for image stabilisation, of the frame per side; 0: off
     [depth]                # any field of StereoSettings
     fps = 15.0
     [serial]
@@ -67,6 +69,24 @@ class ImuSettings:
 
 
 @dataclass(frozen=True)
+class DisplayConfig:
+    """The projector's framebuffer, its refresh rate (Hz) and the stabilisation margin
+    (a fraction of the frame's width and height on each side; 0 turns it off)."""
+
+    device: str = "/dev/fb0"
+    refresh_hz: float = 60.0
+    stabilise_margin: float = 0.04
+
+    def __post_init__(self) -> None:
+        if not 1.0 <= self.refresh_hz <= 1000.0:
+            raise InputError(f"display refresh_hz must be in [1, 1000], got {self.refresh_hz}")
+        if not 0.0 <= self.stabilise_margin <= 0.2:
+            raise InputError(
+                f"display stabilise_margin must be in [0, 0.2], got {self.stabilise_margin}"
+            )
+
+
+@dataclass(frozen=True)
 class Board:
     """The devices of one board; paths are as on the device (``/dev/...``)."""
 
@@ -75,10 +95,15 @@ class Board:
     imu: ImuSettings
     button_device: str
     key_code: int
-    display_device: str
     serial_device: str
     depth: StereoSettings
     camera: CameraSettings = field(default_factory=CameraSettings)
+    display: DisplayConfig = field(default_factory=DisplayConfig)
+
+    @property
+    def display_device(self) -> str:
+        """The projector's framebuffer device."""
+        return self.display.device
 
     def calibration(self) -> Calibration:
         """The calibration loaded from :attr:`calibration_path`."""
@@ -128,7 +153,7 @@ def _parse(data: dict[str, Any], path: Path) -> Board:
         imu=ImuSettings(chip, bus, address, config),
         button_device=str(data["button"]["device"]),
         key_code=check_key_code(int(data["button"]["key_code"])),
-        display_device=str(data.get("display", {}).get("device", "/dev/fb0")),
+        display=DisplayConfig(**_pick(DisplayConfig, dict(data.get("display", {})))),
         serial_device=str(data.get("serial", {}).get("device", "/dev/ttyGS0")),
         depth=StereoSettings(**_pick(StereoSettings, dict(data.get("depth", {})))),
         camera=CameraSettings(**_pick(CameraSettings, dict(data.get("calibrate", {})))),

@@ -1,11 +1,16 @@
 """Motion from the IMU: moving / settled with hysteresis, and the device's orientation.
 
-The device counts as *moving* as soon as a short window of IMU samples is not still
-(:func:`is_still`: gyro rate and accelerometer jitter),
-and as *settled* again only after ``settle_s`` of stillness, so a hand that is nearly
-still does not toggle between the two. The orientation is the integrated gyro (bias
-estimated while still), rotated into the projector frame P; it only serves as part of
-the pose cache key, so slow drift is harmless.
+The device counts as *moving* as soon as it turns on purpose (the gyro rate, its bias
+removed, low-passed so that the hand's 8-12 Hz tremor does not count:
+:class:`~adaproj_edge.motion.rates.LowPass2`, over ``max_rate``) or shakes (the
+accelerometer's jitter over a short window), and as *settled* again only after
+``settle_s`` of stillness, so a hand that is nearly still does not toggle between the
+two. The orientation is the integrated gyro (bias learnt while still,
+:class:`~adaproj_edge.motion.rates.GyroBias`), rotated into the projector frame P; it
+only serves as part of the pose cache key, so slow drift is harmless.
+
+:func:`is_still` is the windowed test of recorded samples (median rate, accelerometer
+jitter) that :mod:`adaproj_edge.session.track` uses offline.
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ import numpy as np
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.rotations import rotation_matrix, rotation_vector
 from adaproj_edge.hal.imu import ImuSample
+from adaproj_edge.motion.rates import GyroBias, LowPass2
 
 
 def is_still(
@@ -35,10 +41,15 @@ def is_still(
 
 @dataclass(frozen=True)
 class MotionSettings:
-    """Hysteresis of the motion detector (seconds)."""
+    """The motion detector: its window and hysteresis (seconds), the deliberate rate
+    (rad/s, after a two-stage low-pass of ``lowpass_s``) and accelerometer jitter
+    (m/s^2, standard deviation over the window) under which the device is still."""
 
     window_s: float = 0.2
     settle_s: float = 0.3
+    max_rate: float = 0.03
+    max_accel_std: float = 0.3
+    lowpass_s: float = 0.08
 
 
 class MotionTracker:
@@ -58,8 +69,8 @@ class MotionTracker:
         self._still_since: int | None = None
         self.moving = False
         self.orientation = np.eye(3)  # R_W_P, W = P at the first sample
-        self._bias = np.zeros(3)
-        self._bias_n = 0
+        self._rate = LowPass2(self.settings.lowpass_s)
+        self.bias = GyroBias(lowpass_s=self.settings.lowpass_s)
 
     def update(self, sample: ImuSample) -> bool | None:
         """Take one sample; returns True when motion starts, False when the device has
@@ -68,8 +79,10 @@ class MotionTracker:
         gyro = np.asarray(sample.gyro, dtype=np.float64)
         if self._last_ns is not None and t > self._last_ns:
             dt = min((t - self._last_ns) * 1e-9, 0.1)
-            w_p = self.R_P_I @ (gyro - self._bias)
-            self.orientation = self.orientation @ rotation_matrix(w_p * dt)
+            w = gyro - self.bias.value
+            self.orientation = self.orientation @ rotation_matrix(self.R_P_I @ w * dt)
+            self._rate.update(w, dt)
+            self.bias.update(gyro, dt)
         self._last_ns = t
         self._window.append(sample)
         horizon = t - int(self.settings.window_s * 1e9)
@@ -77,16 +90,10 @@ class MotionTracker:
             self._window.popleft()
         if len(self._window) < 8:
             return None  # too few samples to judge (start, or after a fault)
-        still = is_still(
-            np.array([s.gyro for s in self._window]),
-            np.array([s.accel for s in self._window]),
-        )
+        s = self.settings
+        jitter = float(np.max(np.std(np.array([x.accel for x in self._window]), axis=0)))
+        still = self.deliberate_rate <= s.max_rate and jitter <= s.max_accel_std
         if still:
-            # the bias is learnt from quiet samples only (a turn starting inside a
-            # still window must not become bias)
-            if self._bias_n < 2000 and not self.moving and np.linalg.norm(gyro) < 0.03:
-                self._bias_n += 1
-                self._bias += (gyro - self._bias) / self._bias_n
             if self._still_since is None:
                 self._still_since = t
         else:
@@ -108,6 +115,13 @@ class MotionTracker:
         self._window.clear()
         self._last_ns = None
         self._still_since = None
+        self._rate.reset()
+        self.bias.reset_stillness()
+
+    @property
+    def deliberate_rate(self) -> float:
+        """The low-passed turning rate (rad/s), bias and tremor taken out."""
+        return float(np.linalg.norm(self._rate.value))
 
     def orientation_vector(self) -> FloatArray:
         """The orientation R_W_P as a rotation vector (3,) in radians."""

@@ -52,6 +52,7 @@ from adaproj_edge.geometry.mesh_surface import MeshSurface
 from adaproj_edge.hal.camera import CameraFrame, CameraSettings, FixedCamera
 from adaproj_edge.hal.clock import VirtualClock
 from adaproj_edge.hal.depth import DepthFrame
+from adaproj_edge.hal.display import DEFAULT_REFRESH_HZ, RefreshTimer
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.hal.lsm6dsox import Lsm6dsoxConfig
 from adaproj_edge.session import schemas
@@ -185,11 +186,21 @@ class SimDisplay:
 
     def __init__(self, world: SimWorld, width: int, height: int) -> None:
         self.world, self._size = world, (width, height)
+        self._timer = RefreshTimer(world.clock, DEFAULT_REFRESH_HZ)
 
     @property
     def size(self) -> tuple[int, int]:
         """(width, height) in pixels."""
         return self._size
+
+    @property
+    def refresh_hz(self) -> float:
+        """The refresh rate, Hz."""
+        return self._timer.refresh_hz
+
+    def wait_refresh(self) -> int:
+        """Wait for the next refresh (virtual); its time, ns."""
+        return self._timer.wait()
 
     def show(self, frame: Image) -> None:
         """Queue a (height, width, 3) BGR frame to reach the wall, grey, after the display
@@ -328,9 +339,9 @@ class SimImu:
         t = T0_NS + ks * self.dt_ns
         f_p, w_p = w.path.imu_truth(((t - T0_NS) * 1e-9).astype(np.float64))
         R_I_P = w.rig.R_P_I.T
-        n = s.imu_noise
-        acc = f_p @ R_I_P.T + self.accel_bias + w.rng.normal(scale=n.accel_sigma, size=f_p.shape)
-        gyr = w_p @ R_I_P.T + self.gyro_bias + w.rng.normal(scale=n.gyro_sigma, size=w_p.shape)
+        accel_sigma, gyro_sigma = s.imu_noise.sigmas(s.imu.rate_hz)
+        acc = f_p @ R_I_P.T + self.accel_bias + w.rng.normal(scale=accel_sigma, size=f_p.shape)
+        gyr = w_p @ R_I_P.T + self.gyro_bias + w.rng.normal(scale=gyro_sigma, size=w_p.shape)
         acc = _quantise(acc, s.imu.accel_scale)
         gyr = _quantise(gyr, s.imu.gyro_scale)
         for i, ti in enumerate(t):

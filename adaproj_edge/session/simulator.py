@@ -4,9 +4,13 @@ The surface is a built-in analytic one (``adaproj_edge.geometry.analytic.SURFACE
 or any triangle mesh (``.obj``/``.ply``, metres, in the projector frame at t = 0).
 The simulator writes a normal session (depth frames, IMU samples, button presses)
 plus the ground truth on channels of its own: ``/truth/pose`` (T_W_P at every IMU
-sample and depth frame) and the ``truth-surface.json`` attachment (with the mesh file
-for meshes), so tests can score what the device estimates. Everything follows from
-the seed: the same arguments give the same file.
+sample and depth frame: at 416 Hz, so the pose at any instant, e.g. when a displayed
+frame is lit, is interpolated to well under a microradian), the ``truth-surface.json``
+attachment (with the mesh file for meshes) and, in the session metadata, the hand's
+intent (``hand``: still phases, tremor, sway, roll; :data:`HAND_KEY`), so tests can
+score what the device estimates and shows. IMU samples arrive as the driver reads the
+chip's FIFO: in batches every ``ImuTiming.read_period_s``. Everything follows from the
+seed: the same arguments give the same file.
 
 Given a ``truth`` rig, the world follows it (depth seen through its ``T_P_D``, the
 IMU turned by its ``R_P_I``, the true projector lighting the surface) while the
@@ -43,7 +47,7 @@ from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.hal.lsm6dsox import Lsm6dsoxConfig
 from adaproj_edge.session import schemas
 from adaproj_edge.session.codec import Record
-from adaproj_edge.session.hand import HandMotion
+from adaproj_edge.session.hand import GRAVITY_W, HandMotion
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.stereo import StereoNoise, stereo_depth
 from adaproj_edge.session.writer import SessionWriter
@@ -66,14 +70,40 @@ def wall_floor_mesh(wall_z: float = 2.0, floor_y: float = 0.45) -> MeshSurface:
     return MeshSurface(WALL_FLOOR, v, np.array([[0, 1, 2], [0, 2, 3], [3, 2, 5], [3, 5, 4]]))
 
 
+HAND_KEY = "hand"
+"""Session metadata key of the simulated hand's intent (JSON, :func:`hand_metadata`)."""
+
+
 @dataclass(frozen=True)
 class ImuNoise:
-    """LSM6DSOX-like noise at 208 Hz (DS12814 table 2: noise density, zero offsets)."""
+    """LSM6DSOX-like noise (DS12814 table 2: noise density, zero offsets).
 
-    accel_sigma: float = 0.008  # m/s^2 per sample (~80 ug/sqrt(Hz) over ~100 Hz)
-    gyro_sigma: float = 0.0007  # rad/s per sample (~3.8 mdps/sqrt(Hz))
+    The per-sample noise is the density times the square root of half the rate (the
+    bandwidth): 0.008 m/s^2 and 0.0007 rad/s at 208 Hz. The accelerometer's offset
+    tilts the gravity estimate directly (0.1 m/s^2 is 0.6 degrees): a unit whose offset
+    was calibrated keeps about 0.02 m/s^2 (2 mg).
+    """
+
+    accel_density: float = 7.8e-4  # m/s^2/sqrt(Hz) (~80 ug/sqrt(Hz))
+    gyro_density: float = 6.9e-5  # rad/s/sqrt(Hz) (~3.8 mdps/sqrt(Hz))
     accel_bias_sigma: float = 0.1  # m/s^2 (~10 mg)
     gyro_bias_sigma: float = 0.005  # rad/s (~0.3 dps)
+
+    def sigmas(self, rate_hz: float) -> tuple[float, float]:
+        """Per-sample accelerometer (m/s^2) and gyro (rad/s) noise at ``rate_hz``."""
+        k = float(np.sqrt(rate_hz / 2))
+        return self.accel_density * k, self.gyro_density * k
+
+
+@dataclass(frozen=True)
+class ImuTiming:
+    """When IMU samples reach the host: the driver reads the chip's FIFO every
+    ``read_period_s`` (a batch), each read taking ``read_s`` plus ``per_sample_s`` per
+    sample on the bus."""
+
+    read_period_s: float = 0.0025
+    read_s: float = 0.0002
+    per_sample_s: float = 0.00005
 
 
 @dataclass(frozen=True)
@@ -86,6 +116,7 @@ class SimulationSettings:
     presses: tuple[float, ...] | None = None
     imu: Lsm6dsoxConfig = field(default_factory=Lsm6dsoxConfig)
     imu_noise: ImuNoise = field(default_factory=ImuNoise)
+    imu_timing: ImuTiming = field(default_factory=ImuTiming)
     stereo: StereoNoise = field(default_factory=StereoNoise)
     motion: HandMotion | None = None
 
@@ -167,16 +198,18 @@ def simulate(scene: Scene, calibration: Calibration, settings: SimulationSetting
     f_p, w_p = hand.imu_truth(t_imu)
     R_I_P = calibration.R_P_I.T
     n = settings.imu_noise
+    accel_sigma, gyro_sigma = n.sigmas(settings.imu.rate_hz)
     acc = f_p @ R_I_P.T + rng.normal(scale=n.accel_bias_sigma, size=3)
-    acc += rng.normal(scale=n.accel_sigma, size=acc.shape)
+    acc += rng.normal(scale=accel_sigma, size=acc.shape)
     gyr = w_p @ R_I_P.T + rng.normal(scale=n.gyro_bias_sigma, size=3)
-    gyr += rng.normal(scale=n.gyro_sigma, size=gyr.shape)
+    gyr += rng.normal(scale=gyro_sigma, size=gyr.shape)
     acc = _quantise(acc, settings.imu.accel_scale)
     gyr = _quantise(gyr, settings.imu.gyro_scale)
     R_all, p_all = hand.pose(t_imu)
+    rx_all = _fifo_receive(t_imu, settings.imu_timing, rng)
     for i, t in enumerate(t_imu):
         ts = T0_NS + round(t * 1e9)
-        rx = ts + 300_000 + int(rng.integers(0, 200_000))
+        rx = T0_NS + int(rx_all[i])
         a = (float(acc[i, 0]), float(acc[i, 1]), float(acc[i, 2]))
         g = (float(gyr[i, 0]), float(gyr[i, 1]), float(gyr[i, 2]))
         recs.append((rx, 1, ImuSample(ts, rx, a, g, 30.0)))
@@ -206,6 +239,32 @@ def simulate(scene: Scene, calibration: Calibration, settings: SimulationSetting
             recs.append((rx, 2, ButtonEvent(ts, rx, KEY_CODE, pressed)))
     recs.sort(key=lambda r: (r[0], r[1]))
     return [r for _, _, r in recs]
+
+
+def _fifo_receive(t: FloatArray, timing: ImuTiming, rng: np.random.Generator) -> FloatArray:
+    """Receive times (ns from the start) of samples taken at ``t`` (s): each batch is
+    read at the first read after it, every sample of a batch arriving together."""
+    period = timing.read_period_s
+    phase = float(rng.uniform(0, period))
+    reads = np.floor((t - phase) / period) + 1  # the read that takes each sample
+    at = phase + reads * period
+    batch = np.unique(reads, return_counts=True)[1]
+    sizes = np.repeat(batch, batch)
+    out: FloatArray = np.round((at + timing.read_s + timing.per_sample_s * sizes) * 1e9)
+    return out
+
+
+def hand_metadata(hand: HandMotion) -> dict[str, Any]:
+    """What the session records of the hand (metadata ``hand``): its still phases
+    (seconds from ``t0_ns``), tremor, sway and roll, and gravity in the world frame."""
+    return {
+        "still": [[round(a, 6), round(b, 6)] for a, b in hand.still_intervals()],
+        "tremor_deg_rms": hand.tremor_deg,
+        "sway_deg_rms": hand.sway_deg,
+        "roll_deg": hand.roll_deg,
+        "gravity_w": [float(x) for x in GRAVITY_W],
+        "t0_ns": T0_NS,
+    }
 
 
 def _pose(t_ns: int, R: FloatArray, p: FloatArray) -> TruthPose:
@@ -242,6 +301,7 @@ def simulate_session(
         "seconds": str(settings.seconds),
         "depth_fps": str(settings.depth_fps),
         "imu_rate_hz": str(settings.imu.rate_hz),
+        HAND_KEY: json.dumps(hand_metadata(settings.hand())),
     }
     tmp = Path(out).with_name(Path(out).name + ".part")
     with SessionWriter(tmp, calibration, meta, T0_NS) as w:

@@ -13,6 +13,7 @@ warps. The cache holds any entry with a ``depth`` lattice and a ``frames`` count
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Callable
 from typing import Generic, Protocol, TypeVar
 
 import numpy as np
@@ -88,11 +89,18 @@ def surface_signature(depth: FloatArray, depth_bin_m: float) -> Key:
 
 
 def pose_key(
-    orientation: FloatArray, depth: FloatArray, orientation_bin_rad: float, depth_bin_m: float
+    orientation: FloatArray,
+    depth: FloatArray,
+    orientation_bin_rad: float,
+    depth_bin_m: float,
+    up: FloatArray | None = None,
+    up_bin: float = 0.01,
 ) -> Key:
-    """The cache key of an orientation (rotation vector, 3) and a lattice depth."""
+    """The cache key of an orientation (rotation vector, 3), a lattice depth and, when
+    given, the warp's "up" (unit vector, 3; binned per component by ``up_bin``)."""
     o = tuple(int(np.floor(x / orientation_bin_rad)) for x in orientation)
-    return o + surface_signature(depth, depth_bin_m)
+    u = () if up is None else tuple(int(np.floor(x / up_bin)) for x in up)
+    return o + surface_signature(depth, depth_bin_m) + u
 
 
 class PoseCache(Generic[E]):
@@ -116,6 +124,7 @@ class PoseCache(Generic[E]):
         max_rel: float = 0.01,
         min_overlap: float = 0.97,
         min_frames: int = 0,
+        accept: Callable[[E], bool] | None = None,
     ) -> E | None:
         """The entry for ``key`` if it fits the current ``depth``, else any entry that
         does (most recent first; it is filed under ``key`` from then on); counts the
@@ -124,12 +133,12 @@ class PoseCache(Generic[E]):
         The key is where to look first: a pose whose orientation or depth signature sits
         near a bin edge gets another key from one estimate to the next, and is still
         found by its surface (with the few entries kept, checking them all costs well
-        under a millisecond). The surface alone decides the content-free warp (the
-        runtime's "up" is the projector's), so a surface match is a warp match.
-        Entries made from fewer than ``min_frames`` averaged depth frames are passed
-        over (a noisier surface than the current one) but kept."""
+        under a millisecond). Entries made from fewer than ``min_frames`` averaged
+        depth frames, or that ``accept`` refuses (made for another "up"), are passed
+        over but kept."""
+        ok = accept or (lambda e: True)
         item = self._items.get(key)
-        if item is not None and item.frames >= min_frames:
+        if item is not None and item.frames >= min_frames and ok(item):
             if surfaces_match(depth, item.depth, max_rel, min_overlap):
                 self._items.move_to_end(key)
                 self.hits += 1
@@ -138,8 +147,10 @@ class PoseCache(Generic[E]):
             del self._items[key]
         for other in reversed(list(self._items)):
             cand = self._items[other]
-            if cand.frames >= min_frames and surfaces_match(
-                depth, cand.depth, max_rel, min_overlap
+            if (
+                cand.frames >= min_frames
+                and ok(cand)
+                and surfaces_match(depth, cand.depth, max_rel, min_overlap)
             ):
                 del self._items[other]
                 self._items[key] = cand

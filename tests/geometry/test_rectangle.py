@@ -8,7 +8,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from adaproj_edge.errors import WarpError
-from adaproj_edge.geometry.rectangle import boundary_edges, inscribed_rectangle, linf_clearance
+from adaproj_edge.geometry.rectangle import (
+    NEAR,
+    boundary_edges,
+    inscribed_rectangle,
+    linf_clearance,
+    side_directions,
+)
 from adaproj_edge.geometry.triangles import grid_triangles
 
 
@@ -42,6 +48,9 @@ def test_rectangle_avoids_holes_and_stays_inside() -> None:
     r = inscribed_rectangle(v, tris[keep], 1.0)
     # the best square lies right of the hole: x in [3, 10], side 7
     assert r.width == pytest.approx(7.0, rel=2e-3)
+    # asked for: the square nearest the region's centre within NEAR of the largest
+    centred = inscribed_rectangle(v, tris[keep], 1.0, near=NEAR)
+    assert 7.0 * (1 - NEAR) - 1e-9 <= centred.width <= 7.0 + 1e-9
     assert r.x0 >= 3.0 - 1e-6
     assert r.x0 + r.width <= 10.0 + 1e-6 and r.y0 >= -1e-6 and r.y0 + r.height <= 10 + 1e-6
 
@@ -55,3 +64,38 @@ def test_degenerate_region_is_an_error() -> None:
     v = np.zeros((3, 2))
     with pytest.raises(WarpError):
         inscribed_rectangle(v, np.array([[0, 1, 2]]), 1.0)
+
+
+def test_side_directions_of_a_rotated_rectangle() -> None:
+    a = np.radians(25.0)
+    d = np.array([[np.cos(a), np.sin(a)]] * 5 + [[-np.sin(a), np.cos(a)]] * 3) * 2.0
+    got = np.degrees(np.mod(np.arctan2(*side_directions(d)[:, ::-1].T), np.pi))
+    assert sorted(np.round(got, 6)) == [25.0, 115.0]
+
+
+def _rotated_region(angle_deg: float, aspect: float, jitter: float, seed: int) -> np.ndarray:
+    v, _ = grid_mesh(16, 10, aspect, 1.0)
+    v = v - v.mean(axis=0)
+    a = np.radians(angle_deg)
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    rng = np.random.default_rng(seed)
+    out: np.ndarray = v @ R.T + rng.normal(scale=jitter, size=v.shape)
+    return out
+
+
+def test_content_turned_upright_in_a_rolled_frame_is_placed_stably() -> None:
+    # the frame's footprint turned by 20 degrees (a rolled projector), slightly
+    # distorted differently each time (noise, tremor): the content's centre stays put
+    _, tris = grid_mesh(16, 10, 1.6, 1.0)
+    centres, widths = [], []
+    for seed in range(6):
+        v = _rotated_region(20.0, 1.6, 0.002, seed)
+        r = inscribed_rectangle(v, tris, 1.6, near=NEAR)
+        centres.append([r.x0 + r.width / 2, r.y0 + r.height / 2])
+        widths.append(r.width)
+        # never much smaller than the largest the search finds (which, along the
+        # ridge, it may even beat)
+        best = inscribed_rectangle(v, tris, 1.6, near=0.0)
+        assert r.width >= best.width * (1 - NEAR) - 1e-9
+    assert np.ptp(np.array(centres), axis=0).max() < 0.02  # of a region 1.6 wide
+    assert np.ptp(widths) < 0.01

@@ -17,6 +17,8 @@ def test_reference_board_and_its_calibration() -> None:
     b = Board.load("rpi5-oakd")
     assert b.imu.address == 0x6A and b.imu.bus == 1 and b.key_code == 28
     assert b.serial_device == "/dev/ttyGS0" and b.depth.width == 640
+    assert b.display.refresh_hz == 60.0 and b.display.stabilise_margin == 0.04
+    assert b.imu.config.rate_hz >= 400 and b.imu.config.fifo
     c = b.calibration()
     assert c.projector.width == 1280 and c.T_P_D.shape == (4, 4)
 
@@ -35,6 +37,9 @@ def write_board(tmp_path: Path, extra: str) -> Path:
     [
         ("[depth]\nfoo = 1\n", "unknown keys"),
         ("[depth]\nmedian = 'x'\n", "median"),
+        ("[display]\nstabilise_margin = 0.5\n", "stabilise_margin"),
+        ("[display]\nrefresh_hz = 0\n", "refresh_hz"),
+        ("[display]\nvsync = true\n", "unknown keys"),
     ],
 )
 def test_bad_board_files(tmp_path: Path, extra: str, match: str) -> None:

@@ -2,13 +2,23 @@
 
 from __future__ import annotations
 
+import errno
+import os
+import struct
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from adaproj_edge.errors import DeviceError, DeviceNotFoundError, InputError
-from adaproj_edge.hal.display import FramebufferDisplay, MemoryDisplay, to_pixels
+from adaproj_edge.hal.clock import VirtualClock
+from adaproj_edge.hal.display import (
+    FBIO_WAITFORVSYNC,
+    FramebufferDisplay,
+    MemoryDisplay,
+    RefreshTimer,
+    to_pixels,
+)
 
 
 def fake_fb(root: Path, w: int, h: int, bpp: int, stride: int | None = None) -> int:
@@ -90,3 +100,63 @@ def test_memory_display_keeps_the_last_frame() -> None:
     d.show(f)
     assert d.count == 1 and d.last is not None and np.array_equal(d.last, f)
     d.close()
+
+
+class FakeIoctl:
+    """``fcntl.ioctl`` stand-in: records calls, advances the clock to the next sync of a
+    60 Hz display, or raises ``error``."""
+
+    def __init__(self, clock: VirtualClock, error: int | None = None) -> None:
+        self.clock, self.error = clock, error
+        self.calls: list[tuple[int, bytes]] = []
+
+    def __call__(self, fd: int, request: int, arg: bytes) -> bytes:
+        self.calls.append((request, arg))
+        if self.error is not None:
+            raise OSError(self.error, os.strerror(self.error))
+        period = round(1e9 / 60)
+        self.clock.sleep_until((self.clock.now_ns() // period + 1) * period)
+        return arg
+
+
+def test_wait_refresh_asks_the_driver_for_vertical_sync(tmp_path: Path) -> None:
+    fake_fb(tmp_path, 8, 4, 32)
+    clock = VirtualClock(1_000)
+    ioctl = FakeIoctl(clock)
+    d = FramebufferDisplay(root=tmp_path, clock=clock, ioctl=ioctl)
+    times = [d.wait_refresh() for _ in range(3)]
+    d.close()
+    period = round(1e9 / 60)
+    assert times == [period, 2 * period, 3 * period]
+    assert ioctl.calls == [(FBIO_WAITFORVSYNC, struct.pack("I", 0))] * 3
+
+
+@pytest.mark.parametrize("err", [errno.ENOTTY, errno.EINVAL])
+def test_a_driver_without_vsync_gets_virtual_refreshes(tmp_path: Path, err: int) -> None:
+    fake_fb(tmp_path, 8, 4, 32)
+    clock = VirtualClock(5_000_000)
+    ioctl = FakeIoctl(clock, error=err)
+    d = FramebufferDisplay(root=tmp_path, clock=clock, refresh_hz=100.0, ioctl=ioctl)
+    times = [d.wait_refresh() for _ in range(3)]
+    d.close()
+    assert times == [10_000_000, 20_000_000, 30_000_000]
+    assert len(ioctl.calls) == 1 and not d.vsync  # asked once, then by the clock
+
+
+def test_a_failing_vsync_is_a_device_error(tmp_path: Path) -> None:
+    fake_fb(tmp_path, 8, 4, 32)
+    clock = VirtualClock(0)
+    d = FramebufferDisplay(root=tmp_path, clock=clock, ioctl=FakeIoctl(clock, errno.EIO))
+    with pytest.raises(DeviceError, match="wait for vsync"):
+        d.wait_refresh()
+    d.close()
+
+
+def test_memory_display_refreshes_on_its_clock() -> None:
+    clock = VirtualClock(0)
+    d = MemoryDisplay(4, 2, clock, refresh_hz=50.0)
+    assert d.refresh_hz == 50.0
+    assert [d.wait_refresh() for _ in range(2)] == [20_000_000, 40_000_000]
+    assert clock.now_ns() == 40_000_000
+    with pytest.raises(InputError, match="refreshes"):
+        RefreshTimer(clock, 0.5)

@@ -125,7 +125,7 @@ def test_io_error_during_configuration() -> None:
 
 
 def test_short_burst_is_an_error() -> None:
-    imu, _, bus = make()
+    imu, _, bus = make(Lsm6dsoxConfig(fifo=False))
     imu.start()
     bus.read_i2c_block_data = lambda a, r, n: [0] * (n - 1)  # type: ignore[method-assign]
     with pytest.raises(DeviceError, match="returned 15 bytes"):

@@ -1,0 +1,381 @@
+"""The display loop: at every refresh of the projector, the last rendered frame moved
+for the device's rotation, stabilised, predicted to when it is lit.
+
+The runtime renders a frame when a depth frame calls for it (10-15 times a second at
+most) and hands it here (:meth:`DisplayLoop.publish`); the IMU's samples come here as
+they are read (:meth:`DisplayLoop.on_imu`). Each refresh, ``lead_s`` before the
+vertical sync, :meth:`DisplayLoop.prepare` steps the stabiliser to the moment the
+frame will be lit (the middle of the refresh period that follows the sync), draws the
+frame through the homography of its correction (:mod:`adaproj_edge.render.reproject`)
+and marks the active faults on it; at the sync it is handed to the display
+(:meth:`DisplayLoop.show_prepared`). Without a stabilisation margin the frame is shown
+as rendered (the runtime before the display loop).
+
+A new frame of the same content places it a little differently from the last one (a
+refinement redistributes it, a new surface estimate or "up" moves it by a few
+millimetres): shown as it comes, that is a jump. Instead the new frame starts where
+the old one's content was on the display (the homography that best carries the new
+placement of a grid of content points onto the old one: a change of shape as well as a
+shift) and glides to its own placement with time constant ``glide_s`` (the homography
+eased towards the identity). A larger change (over
+``max_glide`` of the margin: a re-aim, other content) is shown at once.
+
+Threads (on the device, :func:`run_display`): the display thread owns the display and
+the frame being prepared; the runtime's thread renders and publishes; the IMU reader's
+thread feeds the stabiliser directly (the runtime's queue would hold samples back
+while a depth frame is processed). Two locks: one for the stabiliser, one for the
+published frame (publishing converts into a spare buffer and swaps it in). In a replay
+everything runs on one thread, refreshes on the virtual clock between records
+(:mod:`adaproj_edge.app.replay`), with the compute time measured and the wait for the
+sync modelled: a frame whose computation took longer than ``lead_s`` is handed one or
+more refreshes later. The computation counted is the step's CPU time
+(``time.thread_time``): what it costs on a core of its own, as the display thread has
+on the device, not how long other programs sharing the machine kept it waiting (its
+wall-clock time is reported beside it, stage ``refresh``).
+
+Before the loop runs (:attr:`DisplayLoop.running`), a published frame is shown at once,
+as it always was.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import cv2
+import numpy as np
+
+from adaproj_edge.app.settings import DisplaySettings
+from adaproj_edge.app.status import draw_status, mark_faults
+from adaproj_edge.app.telemetry import Telemetry
+from adaproj_edge.arrays import FloatArray, Image
+from adaproj_edge.errors import AdaprojError
+from adaproj_edge.geometry.projector import Projector
+from adaproj_edge.hal.clock import Clock
+from adaproj_edge.hal.display import Display
+from adaproj_edge.hal.imu import ImuSample
+from adaproj_edge.motion.stabiliser import Stabiliser
+from adaproj_edge.render.content_points import content_points, frame_pixels
+from adaproj_edge.render.reproject import (
+    inner_corners,
+    inset_warp,
+    map_points,
+    reproject,
+    rotation_homography,
+)
+from adaproj_edge.warp.warpmap import Warp
+
+WARPED = ("content-free", "content-aware")
+"""Kinds of frame that show warped content."""
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Shown:
+    """What a published frame shows: its number, its kind ("plain", "content-free",
+    "content-aware", ...), its warp (before the margin's inset) and the content's name."""
+
+    frame_id: int
+    kind: str
+    warp: Warp | None
+    content: str = ""
+
+
+@dataclass(frozen=True)
+class Refresh:
+    """One refresh.
+
+    Attributes
+    ----------
+    vsync_ns : int
+        The refresh the frame was computed for.
+    handed_ns : int
+        When it was handed to the display (a missed refresh: a later one).
+    lit_ns : int
+        The moment the correction was predicted to (the middle of the lit period).
+    sample_ns : int or None
+        Sensor time of the newest IMU sample the correction used.
+    C : (3, 3) float array
+        The stabiliser's correction (a rotation; identity when stabilisation is off).
+    glide : (3, 3) float array
+        The glide between rendered frames (a homography from the corrected display's
+        pixels to the rendered frame's): the frame is drawn with
+        ``glide @ K C K^-1``.
+    usage : float
+        Share of the margin the correction used.
+    compute_s : float
+        Measured CPU time of the stabiliser step, the reprojection and the marks.
+    shown : Shown or None
+        The frame shown (None before any).
+    """
+
+    vsync_ns: int
+    handed_ns: int
+    lit_ns: int
+    sample_ns: int | None
+    C: FloatArray
+    glide: FloatArray
+    usage: float
+    compute_s: float
+    shown: Shown | None
+
+    @property
+    def latency_ms(self) -> float | None:
+        """IMU sample -> frame handed to the display (ms); None without a sample."""
+        if self.sample_ns is None:
+            return None
+        return (self.handed_ns - self.sample_ns) / 1e6
+
+
+RefreshHook = Callable[[Refresh], None]
+
+
+class DisplayLoop:
+    """What the projector shows, refresh by refresh.
+
+    Parameters
+    ----------
+    display : Display
+    projector : Projector
+        Intrinsics and size of the frame.
+    R_P_I : (3, 3) float array
+        IMU frame -> projector frame.
+    settings : DisplaySettings
+    telemetry : Telemetry
+        Stage times ("stabilise", "reproject", "refresh"), the refresh counters and the
+        motion-to-photon latencies.
+    on_refresh : RefreshHook, optional
+        Called with every refresh (replays score them).
+    """
+
+    def __init__(
+        self,
+        display: Display,
+        projector: Projector,
+        R_P_I: FloatArray,
+        settings: DisplaySettings,
+        telemetry: Telemetry,
+        on_refresh: RefreshHook | None = None,
+    ) -> None:
+        self.display = display
+        self.settings = settings
+        self.telemetry = telemetry
+        self.on_refresh = on_refresh
+        self.R_P_I = np.asarray(R_P_I, dtype=np.float64)
+        self.K = projector.K
+        self.period_ns = round(1e9 / settings.refresh_hz)
+        self.stabiliser = Stabiliser(
+            projector.K, (projector.width, projector.height), settings.stabiliser
+        )
+        shape = (projector.height, projector.width, 4)
+        self._buffers = [np.zeros(shape, np.uint8), np.zeros(shape, np.uint8)]
+        self._current = 0
+        self._out = np.zeros(shape, np.uint8)
+        self._marks: list[str] = []
+        self._shown: Shown | None = None
+        self._glide = np.eye(3)  # the glide's homography when published
+        self._glide_ns = 0
+        self._imu_lock = threading.Lock()
+        self._frame_lock = threading.Lock()
+        self.running = False
+        self.last: Refresh | None = None
+
+    def recalibrate(self, projector: Projector, R_P_I: FloatArray) -> None:
+        """Go on with a new calibration of the same projector size (the gyro track
+        starts again: its rates were turned into frame P by the old ``R_P_I``)."""
+        with self._imu_lock, self._frame_lock:
+            self.R_P_I = np.asarray(R_P_I, dtype=np.float64)
+            self.K = projector.K
+            self.stabiliser = Stabiliser(
+                projector.K, (projector.width, projector.height), self.settings.stabiliser
+            )
+
+    @property
+    def stabilising(self) -> bool:
+        """Whether refreshes correct the frame (a stabilisation margin is set)."""
+        return self.settings.stabiliser.enabled
+
+    # ------------------------------------------------------------------ inputs
+    def on_imu(self, sample: ImuSample) -> None:
+        """One IMU sample (any thread)."""
+        rate = self.R_P_I @ np.asarray(sample.gyro, dtype=np.float64)
+        with self._imu_lock:
+            self.stabiliser.add_gyro(sample.sensor_ns, rate)
+
+    def imu_fault(self) -> None:
+        """The IMU failed: no correction until its samples come again."""
+        with self._imu_lock:
+            self.stabiliser.reset()
+
+    def publish(self, frame: Image, marks: list[str], shown: Shown, t_ns: int) -> None:
+        """A newly rendered frame (H, W, 3) BGR, without marks, the faults to mark on it,
+        what it shows and when it was published (the runtime's thread)."""
+        spare = 1 - self._current
+        cv2.cvtColor(frame, cv2.COLOR_BGR2BGRA, dst=self._buffers[spare])
+        glide = self._glide_to(shown, t_ns)
+        with self._frame_lock:
+            self._current = spare
+            self._marks = list(marks)
+            self._shown = shown
+            self._glide, self._glide_ns = glide, t_ns
+        if not self.running:
+            self.display.show(draw_status(frame, marks))
+
+    def _glide_at(self, t_ns: int) -> FloatArray:
+        """The glide's homography (3, 3) at ``t_ns``: from a pixel of the corrected
+        display to the rendered frame's."""
+        age = max(0, t_ns - self._glide_ns) * 1e-9
+        a = math.exp(-age / self.settings.glide_s)
+        out: FloatArray = np.eye(3) + a * (self._glide - np.eye(3))
+        return out
+
+    def _glide_to(self, new: Shown, t_ns: int) -> FloatArray:
+        """The glide (homography, 3 x 3) that starts ``new`` where the frame shown now
+        puts its content; the identity when there is nothing to glide from."""
+        old = self._shown
+        s = self.settings
+        if (
+            not self.stabilising
+            or s.glide_s <= 0
+            or old is None
+            or old.warp is None
+            or new.warp is None
+            or old.kind not in WARPED
+            or new.kind not in WARPED
+            or old.content != new.content
+            or old.warp.content_size != new.warp.content_size
+        ):
+            return np.eye(3)
+        margin = s.stabiliser.margin
+        pts = content_points(new.warp.content_size)
+        u_old = frame_pixels(inset_warp(old.warp, margin), pts)
+        u_new = frame_pixels(inset_warp(new.warp, margin), pts)
+        with self._frame_lock:
+            G_old = self._glide_at(t_ns)
+        u_old = map_points(np.asarray(np.linalg.inv(G_old), dtype=np.float64), u_old)
+        ok = np.isfinite(u_new).all(axis=1) & np.isfinite(u_old).all(axis=1)
+        if ok.sum() < 4:
+            return np.eye(3)
+        found, _ = cv2.findHomography(u_new[ok], u_old[ok], 0)
+        if found is None or not np.all(np.isfinite(found)):
+            return np.eye(3)
+        A = np.asarray(found, dtype=np.float64)
+        w, h = self.stabiliser.size
+        corners = inner_corners((w, h), margin)
+        d = np.abs(map_points(A, corners) - corners)
+        if max(d[:, 0].max() / (margin * w), d[:, 1].max() / (margin * h)) > s.max_glide:
+            return np.eye(3)
+        out: FloatArray = np.asarray(np.linalg.inv(A), dtype=np.float64)
+        out /= out[2, 2]
+        return out
+
+    # ------------------------------------------------------------------ refreshes
+    def prepare(self, vsync_ns: int) -> Refresh:
+        """Compute the frame for the refresh at ``vsync_ns`` (call ``lead_s`` before it);
+        :meth:`show_prepared` hands it over. The record's ``handed_ns`` is ``vsync_ns``
+        (the caller knows better: :meth:`refresh`, :func:`run_display`)."""
+        self.running = True
+        cpu0 = time.thread_time()
+        t0 = time.perf_counter()
+        times = self.telemetry.times
+        lit_ns = vsync_ns + self.period_ns // 2
+        with self._imu_lock:
+            correction = self.stabiliser.step(lit_ns)
+            sample_ns = self.stabiliser.track.last_ns
+        t1 = time.perf_counter()
+        C = correction.C
+        with self._frame_lock:
+            src = self._buffers[self._current]
+            glide = self._glide_at(lit_ns) if self.stabilising else np.eye(3)
+            if self.stabilising:
+                H = glide @ rotation_homography(self.K, C)
+                reproject(src, H, self._out, self.settings.interpolation)
+            else:
+                np.copyto(self._out, src)
+            mark_faults(self._out, self._marks)
+            shown = self._shown
+        t2 = time.perf_counter()
+        cpu = time.thread_time() - cpu0
+        times.add("stabilise", t1 - t0)
+        times.add("reproject", t2 - t1)
+        times.add("refresh", t2 - t0)
+        times.add("refresh_cpu", cpu)
+        return Refresh(
+            vsync_ns, vsync_ns, lit_ns, sample_ns, C, glide, correction.usage, cpu, shown
+        )
+
+    def show_prepared(self) -> None:
+        """Hand the prepared frame to the display."""
+        with self.telemetry.times.timer("display_copy"):
+            self.display.show(self._out)
+
+    def record(self, refresh: Refresh) -> None:
+        """Count a refresh handed to the display, its latency, and pass it on."""
+        t = self.telemetry
+        t.count("refreshes")
+        if refresh.handed_ns > refresh.vsync_ns:
+            t.count("refresh_misses")
+        latency = refresh.latency_ms
+        if latency is not None and self.stabilising:
+            t.photon_ms.append(latency)
+        self.last = refresh
+        if self.on_refresh is not None:
+            self.on_refresh(refresh)
+
+    def refresh(self, vsync_ns: int) -> Refresh:
+        """One refresh on a virtual clock (replays): prepare, hand over, record. The
+        computation is timed; the frame is handed at ``vsync_ns`` if it took at most
+        ``lead_s``, else at the first refresh after it finished (modelled)."""
+        r = self.prepare(vsync_ns)
+        late_ns = round(r.compute_s * 1e9) - round(self.settings.lead_s * 1e9)
+        if late_ns > 0:
+            missed = -(-late_ns // self.period_ns)
+            r = _handed(r, vsync_ns + missed * self.period_ns)
+        self.show_prepared()
+        self.record(r)
+        return r
+
+
+def _handed(r: Refresh, handed_ns: int) -> Refresh:
+    return replace(r, handed_ns=handed_ns)
+
+
+def run_display(loop: DisplayLoop, clock: Clock, stop: threading.Event) -> None:
+    """The device's display thread: wait for each refresh, hand over the frame prepared
+    for it, sleep until ``lead_s`` before the next one and prepare that one. A display
+    that fails is logged and tried again a second later."""
+    lead_ns = round(loop.settings.lead_s * 1e9)
+    prepared: Refresh | None = None
+    while not stop.is_set():
+        try:
+            vsync = loop.display.wait_refresh()
+            if prepared is not None:
+                loop.show_prepared()
+                loop.record(_handed(prepared, clock.now_ns()))
+            clock.sleep_until(vsync + loop.period_ns - lead_ns)
+            prepared = loop.prepare(vsync + loop.period_ns)
+        except AdaprojError as e:
+            log.error("display: %s", e)
+            prepared = None
+            clock.sleep_until(clock.now_ns() + 1_000_000_000)
+
+
+def refresh_summary(telemetry: Telemetry) -> dict[str, Any]:
+    """Refreshes, missed refreshes and the motion-to-photon latency (ms, median and
+    95th percentile) of a run."""
+    lat = np.asarray(telemetry.photon_ms)
+    return {
+        "refreshes": telemetry.counters["refreshes"],
+        "missed": telemetry.counters["refresh_misses"],
+        "motion_to_photon_ms": {
+            "n": int(lat.size),
+            "median": round(float(np.median(lat)), 2) if lat.size else None,
+            "p95": round(float(np.percentile(lat, 95)), 2) if lat.size else None,
+        },
+    }

@@ -1,0 +1,211 @@
+"""Image stabilisation for a hand-held projector: cancel the tremor, follow deliberate
+motion, stay inside the margin.
+
+The frame on the projector is rendered for where the device points; the display shows
+it as a *stabilised* virtual projector would, one whose orientation ``R_s`` follows the
+device's ``R`` smoothly: each refresh shows the frame moved by the correction
+``C = R_s^T R`` (the homography ``K C K^-1``, :mod:`adaproj_edge.render.reproject`),
+with ``R`` predicted to the moment the frame is lit (:mod:`.prediction`).
+
+The filter
+----------
+A first-order follower on the rotation group, as a camera stabiliser's:
+``R_s <- R_s exp(a log(R_s^T R))`` at every refresh, ``a = 1 - exp(-dt / tau)``. Its
+time constant adapts to how fast the device is deliberately turned (the gyro rate
+low-passed twice with ``speed_tau_s``, which takes the 8-12 Hz tremor out):
+``tau = tau_moving + (tau_still - tau_moving) / (1 + (v / moving_rate)^2)``. Held still
+(``v`` well under ``moving_rate``), ``tau`` is ``tau_still`` (seconds): the tremor and
+the slow sway of the hand are cancelled and the picture stays where it is on the
+surface; turned on purpose, ``tau`` drops towards ``tau_moving`` and the picture follows
+with little lag.
+
+The margin
+----------
+The content is rendered ``margin`` of the frame inside each edge, so the correction has
+room. When the correction uses more than ``ease_from`` of that room the follower is
+pulled towards the device (harder the closer to the edge): the picture eases back
+instead of being cut; at the edge it is held there (the content never leaves the
+frame). ``margin = 0`` turns stabilisation off (``C`` is the identity).
+
+Gyro bias
+---------
+A gyro's zero-rate offset integrates into a steady turn: it is learnt while the device
+is held still (:class:`~adaproj_edge.motion.rates.GyroBias`) and removed before
+integration.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.geometry.rotations import rotation_vector
+from adaproj_edge.motion.prediction import GyroTrack, PredictionSettings, small_rotation
+from adaproj_edge.motion.rates import GyroBias, LowPass2
+from adaproj_edge.render.reproject import margin_usage
+
+
+@dataclass(frozen=True)
+class StabiliserSettings:
+    """Tuning of the stabiliser (fractions of the frame, seconds, rad/s).
+
+    margin : float
+        Room kept on each side, a fraction of the frame's width and height; 0: off.
+    tau_still_s, tau_moving_s : float
+        The follower's time constant held still and turned on purpose.
+    moving_rate : float
+        Deliberate turning rate at which the time constant is halfway between the two.
+    speed_tau_s : float
+        Time constant of each of the two low-passes that tell the deliberate rate.
+    ease_from : float
+        Share of the margin in use beyond which the picture is eased back.
+    ease_tau_s : float
+        Time constant of the pull back when the margin is all used.
+    usage_tau_s : float
+        Low-pass of the margin's use that decides the pull (tremor taken out).
+    bias_tau_s, still_rate, still_hold_s, max_bias : float
+        The gyro bias's learning (:class:`~adaproj_edge.motion.rates.GyroBias`).
+    prediction : PredictionSettings
+    """
+
+    margin: float = 0.04
+    tau_still_s: float = 1.0
+    tau_moving_s: float = 0.12
+    moving_rate: float = 0.04
+    speed_tau_s: float = 0.08
+    ease_from: float = 0.5
+    ease_tau_s: float = 0.05
+    usage_tau_s: float = 0.1
+    bias_tau_s: float = 20.0
+    still_rate: float = 0.05
+    still_hold_s: float = 0.3
+    max_bias: float = 0.05
+    prediction: PredictionSettings = field(default_factory=PredictionSettings)
+
+    @property
+    def enabled(self) -> bool:
+        """Whether stabilisation is on (a margin to move in)."""
+        return self.margin > 0
+
+
+@dataclass(frozen=True)
+class Correction:
+    """One refresh's correction.
+
+    Attributes
+    ----------
+    C : (3, 3) float array
+        ``R_s^T R``: rotation from the shown orientation to the stabilised one.
+    usage : float
+        Share of the margin the correction uses (0..1).
+    tau_s : float
+        The follower's time constant at this refresh.
+    """
+
+    C: FloatArray
+    usage: float
+    tau_s: float
+
+
+class Stabiliser:
+    """Gyro in, one correction per refresh out (pure: times are given, never read).
+
+    Parameters
+    ----------
+    K : (3, 3) float array
+        Projector intrinsics.
+    size : (width, height)
+        The projector frame in pixels.
+    settings : StabiliserSettings
+    """
+
+    def __init__(
+        self, K: FloatArray, size: tuple[int, int], settings: StabiliserSettings | None = None
+    ) -> None:
+        self.settings = s = settings or StabiliserSettings()
+        self.K = np.asarray(K, dtype=np.float64)
+        self.size = size
+        self.track = GyroTrack(s.prediction)
+        self._deliberate = LowPass2(s.speed_tau_s)
+        self._bias = GyroBias(s.bias_tau_s, s.still_rate, s.still_hold_s, s.max_bias, s.speed_tau_s)
+        self.R_s: FloatArray | None = None
+        self._last_step_ns: int | None = None
+        self._usage = 0.0
+
+    # ------------------------------------------------------------------ input
+    def add_gyro(self, t_ns: int, rate: FloatArray) -> None:
+        """One gyro sample: rate (3,) in rad/s in frame P, at sensor time ``t_ns``."""
+        s = self.settings
+        last = self.track.last_ns
+        w = np.asarray(rate, dtype=np.float64)
+        if not self.track.add(t_ns, w):
+            return
+        if last is None or t_ns - last > s.prediction.max_gap_s * 1e9:
+            self._bias.reset_stillness()
+            return
+        dt = (t_ns - last) * 1e-9
+        self._deliberate.update(w - self.track.bias, dt)
+        self._bias.update(w, dt)
+        self.track.bias = self._bias.value.copy()
+
+    def reset(self) -> None:
+        """Start afresh (after an IMU fault): no correction until samples come again."""
+        self.track.reset()
+        self.R_s = None
+        self._last_step_ns = None
+        self._deliberate.reset()
+        self._bias.reset_stillness()
+        self._usage = 0.0
+
+    @property
+    def deliberate_rate(self) -> float:
+        """The low-passed turning rate (rad/s), tremor taken out."""
+        return float(np.linalg.norm(self._deliberate.value))
+
+    @property
+    def bias(self) -> FloatArray:
+        """The gyro bias estimate (3,) rad/s in frame P."""
+        return self.track.bias.copy()
+
+    # ------------------------------------------------------------------ output
+    def step(self, t_lit_ns: int) -> Correction:
+        """Advance the follower to ``t_lit_ns`` (when the next frame is lit) and return
+        the correction to show it with."""
+        s = self.settings
+        R = self.track.predict(t_lit_ns)
+        if not s.enabled or self.track.last_ns is None:
+            return Correction(np.eye(3), 0.0, 0.0)
+        if self.R_s is None or self._last_step_ns is None:
+            self.R_s, self._last_step_ns = R, t_lit_ns
+            return Correction(np.eye(3), 0.0, s.tau_still_s)
+        dt = max(0.0, (t_lit_ns - self._last_step_ns) * 1e-9)
+        self._last_step_ns = t_lit_ns
+        v = self.deliberate_rate / s.moving_rate
+        tau = s.tau_moving_s + (s.tau_still_s - s.tau_moving_s) / (1.0 + v * v)
+        # carried along by the low-passed rate (no lag behind a steady turn or a bias
+        # not yet learnt), then pulled towards the device
+        self.R_s = self.R_s @ small_rotation(self._deliberate.value * dt)
+        self.R_s = _toward(self.R_s, R, 1.0 - math.exp(-dt / tau))
+        usage = margin_usage(self.K, self.R_s.T @ R, self.size, s.margin)
+        self._usage += (usage - self._usage) * (1.0 - math.exp(-dt / s.usage_tau_s))
+        if self._usage > s.ease_from:
+            # eased back: a pull whose rate grows smoothly from 0 at ease_from to
+            # 1 / ease_tau_s at the edge, decided on the low-passed use (no tremor in it)
+            x = min(1.0, (self._usage - s.ease_from) / (1.0 - s.ease_from))
+            self.R_s = _toward(self.R_s, R, 1.0 - math.exp(-dt * x * x / s.ease_tau_s))
+            usage = margin_usage(self.K, self.R_s.T @ R, self.size, s.margin)
+        for _ in range(3):  # at the edge: held there (usage is nearly linear in angle)
+            if usage <= 1.0:
+                break
+            self.R_s = _toward(self.R_s, R, 1.0 - 1.0 / usage)
+            usage = margin_usage(self.K, self.R_s.T @ R, self.size, s.margin)
+        return Correction(self.R_s.T @ R, min(usage, 1.0), tau)
+
+
+def _toward(R_s: FloatArray, R: FloatArray, a: float) -> FloatArray:
+    """``R_s`` moved the fraction ``a`` of the way to ``R`` (geodesic)."""
+    out: FloatArray = R_s @ small_rotation(a * rotation_vector(R_s.T @ R))
+    return out

@@ -1,0 +1,206 @@
+#!/usr/bin/env python3
+"""The hand-held figures of issue 14, on simulated sessions, on one core.
+
+    .venv/bin/python tools/bench_handheld.py              # every figure
+    .venv/bin/python tools/bench_handheld.py --seconds 4  # shorter sessions (quicker)
+    .venv/bin/python tools/bench_handheld.py --only jitter latency
+
+Simulates sessions (``simulate_session``, fixed seeds) and replays each twice in the
+same run: with stabilisation (the product) and with ``--no-stabilise`` (today: every
+refresh shows the rendered frame as it is, no margin), then prints
+
+- ``jitter``: RMS frame-to-frame motion of content points on the true surface at the
+  refreshes while the user holds still, on a wall at 1.5 m (``plane``), a column
+  (``cylinder-convex``) and a wall corner (``corner``), hand tremor ``--tremor`` degrees
+  RMS; the ratio on/off (target <= 0.2);
+- ``drift``: how far content points move over 10 s while the hand holds still
+  (target < 2 mm);
+- ``upright``: the largest angle between the content's vertical and gravity on the
+  wall while held still, device rolled 0, 10 and 20 degrees (target <= 1 degree);
+- ``latency``: IMU sample -> corrected frame handed to the display, median and p95
+  (compute measured, refresh wait modelled; target p95 <= 20 ms), next to today's
+  motion-to-frame latency (IMU sees the motion -> the depth-driven frame);
+- ``step``: the display loop's time per refresh on one core (CPU time: the filter and
+  prediction, ``stabilise``; the homography warp, ``reproject``), bilinear and nearest
+  (target <= 3 ms), and the alternatives measured on one frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from adaproj_edge.app.replay import ReplayOptions, replay_session  # noqa: E402
+from adaproj_edge.app.settings import AppSettings  # noqa: E402
+from adaproj_edge.geometry.calibration import Calibration  # noqa: E402
+from adaproj_edge.session.hand import HandMotion  # noqa: E402
+from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session  # noqa: E402
+from adaproj_edge.threads import apply_thread_policy  # noqa: E402
+
+SCENES = {"wall 1.5 m": "plane", "column": "cylinder-convex", "corner": "corner"}
+FIGURES = ("jitter", "drift", "upright", "latency", "step")
+
+
+def simulate(out: Path, surface: str, hand: HandMotion, seed: int) -> Path:
+    """A simulated session of ``hand`` in front of ``surface``."""
+    settings = SimulationSettings(seconds=hand.seconds, depth_fps=15.0, seed=seed, motion=hand)
+    simulate_session(Scene.load(surface), out, Calibration.default(), settings)
+    return out
+
+
+def replay(path: Path, stabilise: bool, settings: AppSettings | None = None) -> dict[str, Any]:
+    """The replay's summary (handheld section and timings)."""
+    options = ReplayOptions(settings or AppSettings(), stabilise=stabilise)
+    t = time.perf_counter()
+    s = replay_session(path, None, options)
+    print(f"    ({path.name}, stabilise={stabilise}: {time.perf_counter() - t:.0f} s)", flush=True)
+    return s
+
+
+def jitter(tmp: Path, seconds: float, tremor: float) -> None:
+    print(f"jitter (tremor {tremor} deg RMS, {seconds:.0f} s sessions; target on/off <= 0.2)")
+    rows = []
+    for k, (label, surface) in enumerate(SCENES.items()):
+        hand = HandMotion(seconds, seed=30 + k, tremor_deg=tremor)
+        path = simulate(tmp / f"jitter-{surface}.mcap", surface, hand, 30 + k)
+        on = replay(path, True)["handheld"]
+        off = replay(path, False)["handheld"]
+        rows.append((label, on["jitter_mm_rms"], off["jitter_mm_rms"]))
+    for label, a, b in rows:
+        ratio = a / b if a is not None and b else float("nan")
+        print(f"  {label:11s} on {a} mm RMS, off (today) {b} mm RMS, ratio {ratio:.3f}")
+
+
+def drift(tmp: Path, tremor: float) -> None:
+    print("drift (held still 12 s on the wall at 1.5 m; target < 2 mm over 10 s)")
+    hand = HandMotion(12.0, seed=40, tremor_deg=tremor, hold_after=0)
+    path = simulate(tmp / "drift.mcap", "plane", hand, 40)
+    on = replay(path, True)["handheld"]
+    off = replay(path, False)["handheld"]
+    print(f"  on {on['drift_mm_10s']} mm, off (today) {off['drift_mm_10s']} mm")
+
+
+def upright(tmp: Path, seconds: float, tremor: float) -> None:
+    print("upright (wall at 1.5 m, device rolled; target <= 1 deg while held still)")
+    for k, roll in enumerate((0.0, 10.0, 20.0)):
+        hand = HandMotion(seconds, seed=50 + k, tremor_deg=tremor, roll_deg=roll)
+        path = simulate(tmp / f"roll-{roll:.0f}.mcap", "plane", hand, 50 + k)
+        h = replay(path, True)["handheld"]
+        print(
+            f"  roll {roll:4.1f} deg: max {h['upright_error_deg_max']} deg, "
+            f"median {h['upright_error_deg_median']} deg"
+        )
+
+
+def latency(tmp: Path, seconds: float, tremor: float) -> None:
+    print("latency (IMU sample -> corrected frame handed to the display; target p95 <= 20 ms)")
+    hand = HandMotion(seconds, seed=60, tremor_deg=tremor)
+    path = simulate(tmp / "latency.mcap", "corner", hand, 60)
+    for interp in ("nearest", "linear"):
+        s = AppSettings()
+        s = replace(s, display=replace(s.display, interpolation=interp))
+        on = replay(path, True, s)
+        h = on["handheld"]
+        m = h["motion_to_photon_ms"]
+        t = on["timings_ms"]
+        print(
+            f"  {interp:7s}: median {m['median']} ms, p95 {m['p95']} ms "
+            f"({h['missed']} of {h['refreshes']} refreshes late); "
+            f"step CPU per refresh median {t['refresh_cpu']['median_ms']} ms, "
+            f"p95 {t['refresh_cpu']['p95_ms']} ms"
+        )
+    today = on["motion_to_frame_ms"]
+    print(
+        f"  today (IMU sees the motion -> depth-driven frame): median {today['median']} ms, "
+        f"p95 {today['p95']} ms"
+    )
+
+
+def step() -> None:
+    """The warp alternatives on one 1280x800 BGRX frame (CPU time, median of 50)."""
+    import cv2
+
+    from adaproj_edge.motion.stabiliser import Stabiliser, StabiliserSettings
+    from adaproj_edge.render.reproject import reproject, rotation_homography
+
+    print("step (one refresh's work on a 1280x800 BGRX frame, CPU ms; target <= 3 ms)")
+    cal = Calibration.default()
+    K = cal.projector.K
+    rng = np.random.default_rng(0)
+    frame = rng.integers(0, 255, (cal.projector.height, cal.projector.width, 4), np.uint8)
+    out = np.empty_like(frame)
+    th = np.deg2rad(0.3)
+    C = cv2.Rodrigues(np.array([th, 0.5 * th, 0.2 * th]))[0]
+    H = rotation_homography(K, C)
+
+    def cpu(fn: Any, n: int = 50) -> float:
+        ts = []
+        for _ in range(n):
+            c = time.thread_time()
+            fn()
+            ts.append(time.thread_time() - c)
+        return float(np.median(ts) * 1e3)
+
+    stab = Stabiliser(K, (cal.projector.width, cal.projector.height), StabiliserSettings())
+    t_ns = [0]
+    rate = np.array([0.001, 0.0, 0.0])
+
+    def filt() -> None:
+        for _ in range(7):  # the samples of one refresh at 416 Hz
+            t_ns[0] += 2_403_846
+            stab.add_gyro(t_ns[0], rate)
+        stab.step(t_ns[0] + 10_000_000)
+
+    print(f"  filter + prediction (7 samples, one step): {cpu(filt):.3f} ms")
+    print(f"  warpPerspective bilinear:  {cpu(lambda: reproject(frame, H, out, 'linear')):.3f} ms")
+    print(f"  warpPerspective nearest:   {cpu(lambda: reproject(frame, H, out, 'nearest')):.3f} ms")
+    A = (H / H[2, 2])[:2]
+    flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+    print(
+        f"  warpAffine bilinear (approximation): "
+        f"{cpu(lambda: cv2.warpAffine(frame, A, frame.shape[1::-1], dst=out, flags=flags)):.3f} ms"
+    )
+    mx, my = np.meshgrid(np.arange(frame.shape[1], dtype=np.float32), np.arange(frame.shape[0]))
+    m1, m2 = cv2.convertMaps(mx, my.astype(np.float32), cv2.CV_16SC2)
+    print(
+        "  remap with fixed-point maps (the fold into the display maps): "
+        f"{cpu(lambda: cv2.remap(frame, m1, m2, cv2.INTER_LINEAR, dst=out)):.3f} ms "
+        "(+ re-composing the maps with H every refresh)"
+    )
+    print(f"  frame copy (the floor): {cpu(lambda: np.copyto(out, frame)):.3f} ms")
+
+
+def main() -> int:
+    apply_thread_policy()
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=6.0, help="length of each session")
+    ap.add_argument("--tremor", type=float, default=0.15, help="hand tremor, degrees RMS")
+    ap.add_argument("--only", nargs="+", choices=FIGURES, default=list(FIGURES))
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory(prefix="bench-handheld-") as d:
+        tmp = Path(d)
+        if "step" in args.only:
+            step()
+        if "jitter" in args.only:
+            jitter(tmp, args.seconds, args.tremor)
+        if "drift" in args.only:
+            drift(tmp, args.tremor)
+        if "upright" in args.only:
+            upright(tmp, args.seconds, args.tremor)
+        if "latency" in args.only:
+            latency(tmp, args.seconds, args.tremor)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
