@@ -43,14 +43,23 @@ class StepSolver(Protocol):
     def step(self, v: FloatArray, w: FloatArray) -> FloatArray: ...
 
 
+PaperWarp = Callable[
+    [Surface, tuple[int, int], ContentMap | None, "WarpSettings"],
+    tuple[FloatArray, dict[str, Any]],
+]
+
+
 @dataclass(frozen=True)
 class Backend:
     """The three solves; :data:`FAST` is the product, the reference backend in
-    :mod:`adaproj_edge.warp.reference` the yardstick."""
+    :mod:`adaproj_edge.warp.reference` the yardstick. ``paper``, when given, computes
+    the whole ``alternation="paper"`` warp its own way (the paper as written,
+    straightforwardly: content pixel coordinates (R*C, 2) of the vertices and meta)."""
 
     conformal: Callable[[MeshGeometry], FloatArray]
     content_free: Callable[[MeshGeometry, FloatArray, float], tuple[FloatArray, FloatArray]]
     content_aware: Callable[[MeshGeometry, ContentAwareWeights], StepSolver]
+    paper: PaperWarp | None = None
 
 
 FAST = Backend(solve_conformal, solve_content_free, ContentAwareSolver)
@@ -146,6 +155,8 @@ def compute_warp(
     if settings.mode == "standard":
         return standard_warp(surface, content_size, settings.grid)
     surface.check_usable()
+    if settings.mode == "content" and settings.alternation == "paper" and backend.paper:
+        return _paper_warp(surface, content_size, content_map, settings, backend.paper)
     timings: dict[str, Any] = {}
     t0 = time.perf_counter()
     mesh = MeshGeometry.build(surface, settings.grid, cache)
@@ -159,11 +170,8 @@ def compute_warp(
         placement = place(mesh, v, content_size, settings.up)
         timings["init"] = time.perf_counter() - t0
         t2 = time.perf_counter()
-        if content_map is not None:
-            values = content_map.values if isinstance(content_map, ContentMap) else content_map
-            if np.ndim(values) != 2:
-                raise InputError(f"content map must be a 2D array, got shape {np.shape(values)}")
-            cmap = ContentMap(np.asarray(values, np.float32), content_size, settings.threshold)
+        cmap = _content_map(content_map, content_size, settings.threshold)
+        if cmap is not None:
             if settings.alternation == "paper":
                 v, iterations, salient_fraction = refine_as_paper(
                     mesh, v_conformal, v, placement, cmap, settings
@@ -178,6 +186,39 @@ def compute_warp(
     timings["total"] = time.perf_counter() - t0
     return make_warp(
         mesh, v, placement, surface, content_size, settings, iterations, salient_fraction, timings
+    )
+
+
+def _content_map(
+    content_map: ContentMap | NDArray[np.floating] | None,
+    content_size: tuple[int, int],
+    threshold: float,
+) -> ContentMap | None:
+    if content_map is None:
+        return None
+    values = content_map.values if isinstance(content_map, ContentMap) else content_map
+    if np.ndim(values) != 2:
+        raise InputError(f"content map must be a 2D array, got shape {np.shape(values)}")
+    return ContentMap(np.asarray(values, np.float32), content_size, threshold)
+
+
+def _paper_warp(
+    surface: Surface,
+    content_size: tuple[int, int],
+    content_map: ContentMap | NDArray[np.floating] | None,
+    settings: WarpSettings,
+    paper: PaperWarp,
+) -> Warp:
+    cmap = _content_map(content_map, content_size, settings.threshold)
+    image_xy, meta = paper(surface, content_size, cmap, settings)
+    grid_uv = settings.grid.vertices(surface.projector)
+    rows, cols = grid_uv.shape[:2]
+    return Warp(
+        grid_uv,
+        image_xy.reshape(rows, cols, 2),
+        content_size,
+        surface.projector,
+        {"mode": "content", "alternation": "paper", "grid": str(settings.grid), **meta},
     )
 
 

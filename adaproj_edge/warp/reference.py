@@ -1,22 +1,36 @@
-"""The straightforward implementation, kept as the yardstick for the fast solver.
+"""The straightforward implementations, kept as yardsticks for the fast engine.
 
-The same energies as :mod:`adaproj_edge.warp.solve`, assembled the way the paper
-describes its implementation: every iteration loops over the terms, collects sparse
-triplets, forms the normal equations and calls ``scipy.sparse.linalg.spsolve``. It is
-readable and obviously right, and slow; tests check that the fast solver gives the same
-answer, and ``tools/bench_warp.py`` measures both in the same run.
+:data:`REFERENCE` has the same energies as :mod:`adaproj_edge.warp.solve`, assembled
+the way the paper describes its implementation: every iteration loops over the terms,
+collects sparse triplets, forms the normal equations and calls
+``scipy.sparse.linalg.spsolve``. It is readable and obviously right, and slow; tests
+check that the fast solver gives the same answer.
+
+:func:`paper_warp` is the paper as written, end to end (§4, Algorithm 1): E_a alone and
+then E' = E_a + lambda E_r with two corner vertices pinned at (0, 0) and (1, gamma)
+(eq. 7), the similarity that makes the content the maximal inscribed rectangle
+(§4.1, same orientation), then the alternation of eq. 8-9 (boundary fixed, the
+regulariser toward the last iterate) solved with ``spsolve`` at every step until the
+mean vertex motion is below the tolerance (0.05 content pixels) or after 10 steps.
+``tools/bench_warp.py`` times :func:`~adaproj_edge.warp.engine.compute_warp` against it
+(``compute_warp(..., WarpSettings(alternation="paper"), REFERENCE)`` runs it).
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
 from adaproj_edge.arrays import FloatArray
-from adaproj_edge.warp.engine import Backend
+from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.geometry.rectangle import inscribed_rectangle
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.warp.engine import Backend, WarpSettings
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.solve import (
     ContentAwareWeights,
@@ -156,6 +170,99 @@ class ReferenceContentAwareSolver:
         return asm.solve(2 * n, fixed).reshape(-1, 2)
 
 
+def paper_warp(
+    surface: Surface,
+    content_size: tuple[int, int],
+    content_map: ContentMap | None,
+    settings: WarpSettings,
+) -> tuple[FloatArray, dict[str, Any]]:
+    """The paper's method as written, straightforwardly (see the module docstring).
+
+    Returns content pixel coordinates (R*C, 2) of the grid vertices (NaN without
+    surface) and ``meta`` (iterations, salient fraction, timings in s).
+    """
+    t0 = time.perf_counter()
+    mesh = MeshGeometry.build(surface, settings.grid)
+    n = mesh.n
+    w, h = content_size
+    gamma = h / w
+    first, last = 0, n - 1  # V_0 and V_|V|: the first and last vertex of the grid
+    # E_a alone (lambda = 0), the two corners pinned: the edge directions of eq. 12
+    asm = _Assembler()
+    _conformal(asm, mesh, 2, np.ones(n))
+    pins2 = {2 * first: 0.0, 2 * first + 1: 0.0, 2 * last: 1.0, 2 * last + 1: gamma}
+    v_a = asm.solve(2 * n, pins2).reshape(n, 2)
+    d_edges, _ = directed(mesh.edges, mesh.lengths)
+    dirs = edge_directions(v_a, d_edges)
+    l2 = float(np.mean(mesh.lengths**2))
+    # eq. 7: E' (all w_a = 1) with the auxiliary scales
+    asm = _Assembler()
+    _conformal(asm, mesh, 3, np.ones(n))
+    _relative_size(
+        asm,
+        mesh,
+        dirs,
+        np.full(d_edges.shape[0], settings.lam),
+        np.full(mesh.edges.shape[0], settings.lam * 2 * l2),
+    )
+    pins3 = {3 * first: 0.0, 3 * first + 1: 0.0, 3 * last: 1.0, 3 * last + 1: gamma}
+    x = asm.solve(3 * n, pins3).reshape(n, 3)
+    v0 = x[:, :2].copy()
+    # §4.1: the content rectangle becomes the maximal inscribed one, same orientation
+    rect = inscribed_rectangle(v0, mesh.tris, w / h, boundary=mesh.boundary)
+    scale = w / rect.width
+    origin = np.array([rect.x0, rect.y0])
+
+    def to_pixels(v: FloatArray) -> FloatArray:
+        out: FloatArray = (v - origin) * scale - 0.5
+        return out
+
+    timings: dict[str, Any] = {"init": time.perf_counter() - t0}
+    boundary = np.unique(mesh.boundary)
+    v = v0
+    iterations = 0
+    fraction = 0.0
+    if content_map is not None:
+        for _ in range(settings.max_iterations):
+            xy = to_pixels(v)
+            c = content_map.sample(xy).astype(np.float64)
+            wa = (c >= settings.threshold).astype(np.float64)  # eq. 8
+            fraction = float(wa.mean())
+            if wa.min() == wa.max():
+                break
+            asm = _Assembler()
+            _conformal(asm, mesh, 3, wa + 1e-6)
+            _relative_size(
+                asm,
+                mesh,
+                dirs,
+                np.full(d_edges.shape[0], settings.lam),
+                settings.lam * l2 * (wa[mesh.edges[:, 0]] + wa[mesh.edges[:, 1]]),
+            )
+            for i in range(n):  # the regulariser of eq. 9 (and a trace: definite)
+                reg = max(1.0 - float(c[i]), 0.0) + 1e-6
+                asm.row(reg, [(3 * i, 1.0)], float(v[i, 0]))
+                asm.row(reg, [(3 * i + 1, 1.0)], float(v[i, 1]))
+            fixed = {}
+            for i in boundary:  # eq. 9: the boundary stays where the initial solution put it
+                fixed[3 * int(i)] = float(v0[i, 0])
+                fixed[3 * int(i) + 1] = float(v0[i, 1])
+            v_new = asm.solve(3 * n, fixed).reshape(n, 3)[:, :2]
+            motion = float(np.mean(np.linalg.norm(to_pixels(v_new) - xy, axis=1)))
+            v = v_new
+            iterations += 1
+            if motion < settings.tolerance:
+                break
+    image_xy = np.full((mesh.grid_uv.shape[0] * mesh.grid_uv.shape[1], 2), np.nan)
+    image_xy[mesh.verts] = to_pixels(v)
+    timings["total"] = time.perf_counter() - t0
+    meta = {"iterations": iterations, "salient_vertex_fraction": fraction, "timings": timings}
+    return image_xy, meta
+
+
 REFERENCE = Backend(
-    solve_conformal_reference, solve_content_free_reference, ReferenceContentAwareSolver
+    solve_conformal_reference,
+    solve_content_free_reference,
+    ReferenceContentAwareSolver,
+    paper_warp,
 )
