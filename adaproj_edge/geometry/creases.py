@@ -65,11 +65,30 @@ class Unfolding:
         return out
 
 
+def crease_probes(tri_uv: FloatArray) -> FloatArray:
+    """Where a triangle with pixel corners ``tri_uv`` (T, 3, 2) is probed for a crease:
+    its edge midpoints and its centroid, (T, 4, 2)."""
+    return np.stack(
+        [
+            (tri_uv[:, 0] + tri_uv[:, 1]) / 2,
+            (tri_uv[:, 1] + tri_uv[:, 2]) / 2,
+            (tri_uv[:, 2] + tri_uv[:, 0]) / 2,
+            tri_uv.mean(axis=1),
+        ],
+        axis=1,
+    )
+
+
 def unfold_creases(
-    surface: Surface, tri_uv: FloatArray, tris: IntArray, points: FloatArray
+    surface: Surface,
+    tri_uv: FloatArray,
+    tris: IntArray,
+    points: FloatArray,
+    probes: FloatArray | None = None,
 ) -> Unfolding:
     """Unfold the creased triangles among ``tris`` (T, 3) (vertex indices into ``points``
-    (N, 3)), whose pixel corners are ``tri_uv`` (T, 3, 2)."""
+    (N, 3)), whose pixel corners are ``tri_uv`` (T, 3, 2). ``probes`` (T, 4, 3): the
+    surface at their :func:`crease_probes`, when the caller has sampled it already."""
     tri_pts = points[tris]
     t_count = tris.shape[0]
     out = tri_pts.copy()
@@ -88,16 +107,7 @@ def unfold_creases(
     size = np.sqrt(
         np.linalg.norm(cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0]), axis=1)
     )
-    probes = np.stack(
-        [
-            (tri_uv[:, 0] + tri_uv[:, 1]) / 2,
-            (tri_uv[:, 1] + tri_uv[:, 2]) / 2,
-            (tri_uv[:, 2] + tri_uv[:, 0]) / 2,
-            tri_uv.mean(axis=1),
-        ],
-        axis=1,
-    )
-    xs = surface.points_at(probes)  # (T, 4, 3)
+    xs = surface.points_at(crease_probes(tri_uv)) if probes is None else probes  # (T, 4, 3)
     dist = np.abs(np.sum((xs - tri_pts[:, :1]) * n[:, None, :], axis=2))
     rough = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=1) > ROUGH * size
     if not np.any(rough):

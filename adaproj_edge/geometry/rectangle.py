@@ -54,6 +54,13 @@ def boundary_edges(tris: IntArray) -> IntArray:
 def linf_clearance(c: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
     """L-infinity distance from points ``c`` (..., 2) to the segments p0-p1 (E, 2),
     minimised over the segments: (...)."""
+    out: FloatArray = linf_distances(c, p0, p1).min(axis=1).reshape(c.shape[:-1])
+    return out
+
+
+def linf_distances(c: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
+    """L-infinity distance (N, E) from each of the points ``c`` (..., 2) (N of them) to
+    each of the segments p0-p1 (E, 2)."""
     a = p0[None, :, :] - c.reshape(-1, 1, 2)  # (N, E, 2): segment start relative to c
     d = (p1 - p0)[None, :, :]
     # f(t) = max(|a_x + t d_x|, |a_y + t d_y|) is convex and piecewise linear in t: its
@@ -67,7 +74,7 @@ def linf_clearance(c: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
         t = np.clip(num / np.where(ok, den, 1.0), 0.0, 1.0)
         f = np.maximum(np.abs(ax + t * dx), np.abs(ay + t * dy))
         best = np.minimum(best, np.where(ok, f, np.inf))
-    out: FloatArray = best.min(axis=1).reshape(c.shape[:-1])
+    out: FloatArray = best
     return out
 
 
@@ -135,9 +142,43 @@ def inscribed_rectangle(
     if r <= 0:
         c, step = _raster_start(q, tris, resolution)
         r = float(linf_clearance(c, p0, p1))
-    # pattern search, four step sizes per evaluation (step, step/2, step/4, step/8):
-    # move to the best trial that improves r and carry on at its step size; when none
-    # does, the step shrinks 16-fold
+    c, r = _climb(c, r, step, tol, p0, p1)
+    return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
+
+
+def _climb(
+    c: FloatArray, r: float, step: float, tol: float, p0: FloatArray, p1: FloatArray
+) -> tuple[FloatArray, float]:
+    """Climb the clearance from centre ``c`` (clearance ``r``), first over the boundary
+    edges that can be the nearest ones while the centre stays within reach of ``c``;
+    when the centre leaves that reach or a far edge ends up nearer, the search is redone
+    over all of them."""
+    reach = 4.0 * step
+    near = linf_distances(c[None, :], p0, p1)[0] <= r + 2.0 * reach
+    if not near.all():
+        found = _search(c, r, step, tol, p0[near], p1[near], reach)
+        if found is not None and float(linf_clearance(found[0], p0, p1)) >= found[1] * (
+            1.0 - 1e-12
+        ):
+            return found
+    found = _search(c, r, step, tol, p0, p1, np.inf)
+    assert found is not None
+    return found
+
+
+def _search(
+    c: FloatArray,
+    r: float,
+    step: float,
+    tol: float,
+    p0: FloatArray,
+    p1: FloatArray,
+    reach: float,
+) -> tuple[FloatArray, float] | None:
+    """Pattern search, four step sizes per evaluation (step, step/2, step/4, step/8):
+    move to the best trial that improves r and carry on at its step size; when none
+    does, the step shrinks 16-fold. None if the centre goes farther than ``reach``."""
+    start = c
     while step > tol:
         trial = (c + step * _PATTERN).reshape(-1, 2)
         rt = linf_clearance(trial, p0, p1)
@@ -145,9 +186,11 @@ def inscribed_rectangle(
         if rt[k] > r:
             c, r = trial[k], float(rt[k])
             step *= _SCALES[k // _DIRECTIONS.shape[0]]
+            if float(np.max(np.abs(c - start))) > reach:
+                return None
         else:
             step *= _SCALES[-1] / 2
-    return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
+    return c, r
 
 
 def _inside(c: FloatArray, v: FloatArray, tris: IntArray) -> bool:

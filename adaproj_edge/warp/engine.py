@@ -27,7 +27,9 @@ from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD, ContentMap
 from adaproj_edge.errors import InputError, WarpError
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
+from adaproj_edge.warp.anderson import Anderson
+from adaproj_edge.warp.guard import guard
+from adaproj_edge.warp.mesh import MeshGeometry, WarpCache, keeps_orientation
 from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
 from adaproj_edge.warp.solve import (
     ContentAwareSolver,
@@ -164,29 +166,64 @@ def compute_warp(
     timings["conformal"] = time.perf_counter() - t0
     iterations = 0
     salient_fraction = 0.0
+    extra: dict[str, Any] = {}
     if settings.mode == "content":
-        v_conformal = v
-        v, _ = backend.content_free(mesh, v, settings.lam)
-        placement = place(mesh, v, content_size, settings.up)
-        timings["init"] = time.perf_counter() - t0
-        t2 = time.perf_counter()
         cmap = _content_map(content_map, content_size, settings.threshold)
-        if cmap is not None:
-            if settings.alternation == "paper":
-                v, iterations, salient_fraction = refine_as_paper(
-                    mesh, v_conformal, v, placement, cmap, settings
-                )
-            else:
-                v, placement, iterations, salient_fraction = refine(
-                    mesh, v, placement, cmap, settings, backend, timings
-                )
-        timings["refine"] = time.perf_counter() - t2
+        v, placement, iterations, salient_fraction, extra = content_aware(
+            mesh, v, content_size, cmap, settings, backend, timings
+        )
+        timings["refine"] = time.perf_counter() - t0 - timings["init"]
     else:
         placement = place(mesh, v, content_size, settings.up)
     timings["total"] = time.perf_counter() - t0
-    return make_warp(
+    warp = make_warp(
         mesh, v, placement, surface, content_size, settings, iterations, salient_fraction, timings
     )
+    warp.meta.update(extra)
+    return warp
+
+
+def content_aware(
+    mesh: MeshGeometry,
+    v_conformal: FloatArray,
+    content_size: tuple[int, int],
+    content_map: ContentMap | None,
+    settings: WarpSettings,
+    backend: Backend = FAST,
+    timings: dict[str, Any] | None = None,
+) -> tuple[FloatArray, Placement, int, float, dict[str, Any]]:
+    """The ``content`` mode from the conformal positions ``v_conformal`` (n, 2).
+
+    With salient and non-salient content in view, our alternation (:func:`refine`)
+    starts from the conformal warp (its fixed point does not depend on the start) and
+    :func:`~adaproj_edge.warp.guard.guard` keeps it only where it is no worse than the
+    conformal warp on the subject; with none (or no content map), the content-free warp
+    E' = E_a + lambda E_r (paper §4.1). ``alternation="paper"``: E', then the paper's
+    alternation as written.
+
+    Returns positions (n, 2), their placement, the alternation's steps, the salient
+    vertex fraction and meta (``guard``: what was kept and why).
+    """
+    t0 = time.perf_counter()
+    timings = {} if timings is None else timings
+    placement = place(mesh, v_conformal, content_size, settings.up)
+    w = None if content_map is None else content_map.weights(placement.apply(v_conformal))
+    if content_map is None or w is None or settings.alternation == "paper" or w.min() == w.max():
+        v, _ = backend.content_free(mesh, v_conformal, settings.lam)
+        placement = place(mesh, v, content_size, settings.up)
+        timings["init"] = time.perf_counter() - t0
+        if content_map is None or settings.alternation != "paper":
+            return v, placement, 0, 0.0 if w is None else float(w.mean()), {}
+        v, iterations, fraction = refine_as_paper(
+            mesh, v_conformal, v, placement, content_map, settings
+        )
+        return v, placement, iterations, fraction, {}
+    timings["init"] = time.perf_counter() - t0
+    v, aware_placement, iterations, fraction = refine(
+        mesh, v_conformal, placement, content_map, settings, backend, timings
+    )
+    choice = guard(mesh, (v, aware_placement), (v_conformal, placement), content_map, settings.up)
+    return choice.v, choice.placement, iterations, fraction, {"guard": choice.meta}
 
 
 def _content_map(
@@ -232,36 +269,52 @@ def refine(
     timings: dict[str, Any] | None = None,
 ) -> tuple[FloatArray, Placement, int, float]:
     """The content-aware alternation (Algorithm 1, our energy); returns the final
-    positions, their placement, the number of steps and the salient vertex fraction."""
+    positions, their placement, the number of steps and the salient vertex fraction.
+
+    Rounds: the salient set (eq. 8, from the current placement) and the placement held,
+    steps (Anderson-accelerated, :mod:`~adaproj_edge.warp.anderson`) until the mean
+    vertex motion is below the tolerance (ten times it while the salient set may still
+    change); then the content is placed again, and when that shows new salient
+    vertices another round follows. The salient set only grows (a vertex that showed
+    salient content stays salient), so the alternation cannot oscillate.
+    """
     solver: StepSolver | None = None
     iterations = 0
-    fraction = 0.0
     steps: list[float] = []
-    w = np.zeros(mesh.n)
-    for _ in range(settings.max_iterations):
+    accel = Anderson()
+    # eq. 8 at the start of every round, from the placement of that moment
+    w = content_map.weights(placement.apply(v)).astype(np.float64)
+    placed = True  # the placement is that of v
+    while iterations < settings.max_iterations and w.min() != w.max():
         t0 = time.perf_counter()
-        xy = placement.apply(v)
-        # eq. 8, with hysteresis: a vertex that showed salient content stays salient,
-        # so the salient set only grows and the alternation cannot oscillate
-        w = np.maximum(w, content_map.weights(xy).astype(np.float64))
-        fraction = float(w.mean())
-        if w.min() == w.max():  # nothing or everything salient: E' already is the answer
-            break
         if solver is None:
             solver = backend.content_aware(mesh, settings.weights)
-        v_new = solver.step(v, w)
-        if not _orientation_ok(mesh, v_new):
-            break  # keep the last fold-free iterate
-        new_placement = place(mesh, v_new, content_map.content_size, settings.up, placement)
-        motion = float(np.mean(np.linalg.norm(new_placement.apply(v_new) - xy, axis=1)))
-        v, placement = v_new, new_placement
+        g = solver.step(v, w)
+        v_next = accel.next(v.ravel(), g.ravel()).reshape(-1, 2)
+        if not _orientation_ok(mesh, v_next):
+            accel.reset()
+            v_next = g  # the plain step, unless it folds too
+            if not _orientation_ok(mesh, v_next):
+                break  # keep the last fold-free iterate
+        # the plain step's length: how far the iterate still is from the fixed point
+        motion = placement.scale * float(np.mean(np.linalg.norm(g - v, axis=1)))
+        v, placed = v_next, False
         iterations += 1
         steps.append(time.perf_counter() - t0)
         if motion < settings.tolerance:
-            break
+            # the round has settled: place the content again and look at it
+            placement = place(mesh, v, content_map.content_size, settings.up, placement)
+            placed = True
+            grown = np.maximum(w, content_map.weights(placement.apply(v)))
+            if np.array_equal(grown, w):
+                break
+            w = grown
+            accel.reset()  # a new salient set: a new fixed-point map
+    if not placed:
+        placement = place(mesh, v, content_map.content_size, settings.up, placement)
     if timings is not None:
         timings["iterations"] = steps
-    return v, placement, iterations, fraction
+    return v, placement, iterations, float(w.mean())
 
 
 def refine_as_paper(
@@ -296,11 +349,7 @@ def refine_as_paper(
 
 def _orientation_ok(mesh: MeshGeometry, v: FloatArray) -> bool:
     """No triangle folded over (all keep the orientation they have in the projector)."""
-    q = v[mesh.tris]
-    cross = (q[:, 1, 0] - q[:, 0, 0]) * (q[:, 2, 1] - q[:, 0, 1]) - (q[:, 1, 1] - q[:, 0, 1]) * (
-        q[:, 2, 0] - q[:, 0, 0]
-    )
-    return bool(np.all(cross > 0))
+    return keeps_orientation(mesh, v)
 
 
 def make_warp(

@@ -20,13 +20,13 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
-from adaproj_edge.arrays import FloatArray
+from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.geometry.rectangle import inscribed_rectangle
 from adaproj_edge.geometry.surface import Surface
@@ -39,6 +39,7 @@ from adaproj_edge.warp.solve import (
     edge_directions,
     gauge_vertices,
 )
+from adaproj_edge.warp.warpmap import Grid
 
 
 class _Assembler:
@@ -73,7 +74,75 @@ class _Assembler:
         return x
 
 
-def _conformal(asm: _Assembler, mesh: MeshGeometry, stride: int, apex_weight: FloatArray) -> None:
+class _Mesh(Protocol):
+    """What the term-by-term assembly reads of a mesh."""
+
+    @property
+    def tris(self) -> IntArray: ...
+
+    @property
+    def coords(self) -> FloatArray: ...
+
+    @property
+    def edges(self) -> IntArray: ...
+
+    @property
+    def lengths(self) -> FloatArray: ...
+
+
+@dataclass(frozen=True)
+class PaperMesh:
+    """The grid mesh as the paper sets it up (§3.2), independently of the engine's
+    :class:`~adaproj_edge.warp.mesh.MeshGeometry`: the surface at the grid vertices, the
+    triangles whose corners all meet it, ``alpha, beta`` of eq. 2 for every role, the
+    edges and their lengths on the surface, the boundary edges."""
+
+    verts: IntArray  # (n,) grid index of each vertex
+    tris: IntArray  # (T, 3) vertex indices
+    coords: FloatArray  # (T, 3, 2) alpha, beta per role
+    edges: IntArray  # (E, 2)
+    lengths: FloatArray  # (E,)
+    boundary: IntArray  # (B, 2)
+
+    @property
+    def n(self) -> int:
+        return int(self.verts.size)
+
+
+def paper_mesh(surface: Surface, grid: Grid) -> PaperMesh:
+    """Set up the mesh of ``grid`` on ``surface`` straightforwardly (numpy over all
+    triangles at once; no crease unfolding, which the paper does not have)."""
+    uv = grid.vertices(surface.projector)
+    points = surface.points_at(uv).reshape(-1, 3)
+    cols = grid.cols + 1
+    r, c = np.mgrid[0 : grid.rows, 0 : grid.cols]
+    a = (r * cols + c).ravel()
+    b, d, e = a + 1, a + cols, a + cols + 1
+    cand = np.concatenate([np.stack([a, b, e], 1), np.stack([a, e, d], 1)])  # diagonal split
+    p = points[cand]
+    normal = -np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    ok = np.all(np.isfinite(p), axis=(1, 2))
+    ok[ok] = np.sum(normal[ok] * p[ok].mean(axis=1), axis=1) < 0  # facing the projector
+    corners = cand[ok]
+    verts, tris = np.unique(corners, return_inverse=True)
+    tris = tris.reshape(-1, 3)
+    p = points[verts][tris]
+    normal = normal[ok] / np.linalg.norm(normal[ok], axis=1, keepdims=True)
+    coords = np.zeros((tris.shape[0], 3, 2))
+    for k in range(3):  # eq. 2: P1 = P2 + alpha (P3 - P2) + beta R90 (P3 - P2)
+        p1, p2, p3 = p[:, k], p[:, (k + 1) % 3], p[:, (k + 2) % 3]
+        edge = p3 - p2
+        ee = np.sum(edge * edge, axis=1)
+        coords[:, k, 0] = np.sum((p1 - p2) * edge, axis=1) / ee
+        coords[:, k, 1] = np.sum((p1 - p2) * np.cross(normal, edge), axis=1) / ee
+    sides = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+    edges, uses = np.unique(sides, axis=0, return_counts=True)
+    pts = points[verts]
+    lengths = np.linalg.norm(pts[edges[:, 0]] - pts[edges[:, 1]], axis=1)
+    return PaperMesh(verts, tris, coords, edges, lengths, edges[uses == 1])
+
+
+def _conformal(asm: _Assembler, mesh: _Mesh, stride: int, apex_weight: FloatArray) -> None:
     for t, tri in enumerate(mesh.tris):
         for k in range(3):
             i1, i2, i3 = int(tri[k]), int(tri[(k + 1) % 3]), int(tri[(k + 2) % 3])
@@ -88,7 +157,7 @@ def _conformal(asm: _Assembler, mesh: MeshGeometry, stride: int, apex_weight: Fl
 
 def _relative_size(
     asm: _Assembler,
-    mesh: MeshGeometry,
+    mesh: _Mesh,
     dirs: FloatArray,
     edge_weight: FloatArray,
     smooth_weight: FloatArray,
@@ -156,11 +225,13 @@ class ReferenceContentAwareSolver:
             target = mesh.lengths[e] * dirs[e]
             for c in range(2):
                 asm.row(cw.size * both, [(2 * i + c, 1.0), (2 * j + c, -1.0)], float(target[c]))
-            nx, ny = float(dirs[e, 1]), float(-dirs[e, 0])
-            asm.row(
-                cw.size_floor * (2.0 - both),
-                [(2 * i, nx), (2 * i + 1, ny), (2 * j, -nx), (2 * j + 1, -ny)],
-            )
+            old = v[i] - v[j]  # the edge as it is: the floor rows hold it there
+            for c in range(2):
+                asm.row(
+                    cw.size_floor * (2.0 - both),
+                    [(2 * i + c, 1.0), (2 * j + c, -1.0)],
+                    float(old[c]),
+                )
         l2 = float(np.mean(mesh.lengths**2))
         for i in range(n):
             for c in range(2):
@@ -182,7 +253,7 @@ def paper_warp(
     surface) and ``meta`` (iterations, salient fraction, timings in s).
     """
     t0 = time.perf_counter()
-    mesh = MeshGeometry.build(surface, settings.grid)
+    mesh = paper_mesh(surface, settings.grid)
     n = mesh.n
     w, h = content_size
     gamma = h / w
@@ -253,7 +324,7 @@ def paper_warp(
             iterations += 1
             if motion < settings.tolerance:
                 break
-    image_xy = np.full((mesh.grid_uv.shape[0] * mesh.grid_uv.shape[1], 2), np.nan)
+    image_xy = np.full(((settings.grid.rows + 1) * (settings.grid.cols + 1), 2), np.nan)
     image_xy[mesh.verts] = to_pixels(v)
     timings["total"] = time.perf_counter() - t0
     meta = {"iterations": iterations, "salient_vertex_fraction": fraction, "timings": timings}
