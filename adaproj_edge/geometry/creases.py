@@ -24,6 +24,7 @@ from adaproj_edge.geometry.triangles import cross, triangle_normals
 ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, of a crease
 CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this make a crease
 FIT = 0.25  # the two planes must explain the surface this much better than the triangle
+CURVED_FIT = 0.2  # ... or, on a curved crease, this much better than its chord does
 
 
 @dataclass(frozen=True)
@@ -132,20 +133,24 @@ def unfold_creases(
     with np.errstate(invalid="ignore"):
         differ = np.any(np.einsum("rkj,rj->rk", corner_n, corner_n[:, 0]) < CREASE_COS, axis=1)
     for t in rough_t[differ & np.all(np.isfinite(corner_n), axis=(1, 2))]:
-        normals = vn[tris[t]]
-        group_b = [k for k in range(3) if float(normals[k] @ normals[0]) < CREASE_COS]
-        if not group_b:
+        groups = _crease_groups(vn[tris[t]])
+        if groups is None:
             continue
-        if any(float(normals[k] @ normals[group_b[0]]) < CREASE_COS for k in group_b):
-            continue  # three different planes: not a single crease
-        group_a = [k for k in range(3) if k not in group_b]
-        na, nb = normals[group_a[0]], normals[group_b[0]]
-        pa, pb = tri_pts[t, group_a[0]], tri_pts[t, group_b[0]]
+        group_a, group_b = groups
+        na, pa = _plane(vn[tris[t, group_a]], tri_pts[t, group_a])
+        nb, pb = _plane(vn[tris[t, group_b]], tri_pts[t, group_b])
         # a crease only if the two planes explain the surface inside the triangle (a
         # strongly curved smooth patch, e.g. near a silhouette, is left as it is)
         probe = xs[t][np.all(np.isfinite(xs[t]), axis=1)]
         fit = np.minimum(np.abs((probe - pa) @ na), np.abs((probe - pb) @ nb))
-        if probe.size == 0 or float(np.max(fit)) > FIT * ROUGH * float(size[t]):
+        if probe.size == 0:
+            continue
+        # straight creases: the two planes explain the surface; curved ones (a curved
+        # wall meeting a floor): far better than the triangle does (a smooth curved
+        # patch is explained about as badly by its corners' planes as by its chord)
+        worst = float(np.max(fit))
+        chord = float(np.max(np.where(np.isfinite(dist[t]), dist[t], 0.0)))
+        if worst > FIT * ROUGH * float(size[t]) and worst > CURVED_FIT * chord:
             continue
         rot, origin = _unfolding_rotation(pa, na, pb, nb)
         out[t, group_b] = origin + (tri_pts[t, group_b] - origin) @ rot.T
@@ -154,6 +159,34 @@ def unfold_creases(
         unfolding.normal_b[t], unfolding.point_b[t] = nb, pb
         unfolding.rotation[t], unfolding.origin[t] = rot, origin
     return unfolding
+
+
+def _crease_groups(normals: FloatArray) -> tuple[list[int], list[int]] | None:
+    """The corners (by their planes' normals (3, 3)) on either side of a crease: the two
+    most different planes are its sides and the third corner joins the nearer one, if
+    it is much nearer to it (on a curved wall two corners' planes differ a little); the
+    side with corner 0 first. None without a single crease."""
+    pairs = ((0, 1), (0, 2), (1, 2))
+    dots = [float(normals[i] @ normals[j]) for i, j in pairs]
+    i, j = pairs[int(np.argmin(dots))]
+    crease = float(np.arccos(np.clip(min(dots), -1.0, 1.0)))
+    if min(dots) >= CREASE_COS:
+        return None
+    k = 3 - i - j
+    to_i, to_j = float(normals[k] @ normals[i]), float(normals[k] @ normals[j])
+    partner = i if to_i >= to_j else j
+    if np.arccos(np.clip(max(to_i, to_j), -1.0, 1.0)) > 0.5 * crease:
+        return None  # three different planes: not a single crease
+    side = [partner, k]
+    other = [j] if partner == i else [i]
+    return (sorted(side), other) if 0 in side else (other, sorted(side))
+
+
+def _plane(normals: FloatArray, points: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The plane (unit normal, point) of corners with normals ``normals`` (k, 3) at
+    ``points`` (k, 3): their mean normal through their mean point."""
+    n = normals.sum(axis=0)
+    return n / np.linalg.norm(n), points.mean(axis=0)
 
 
 def _unfolding_rotation(
