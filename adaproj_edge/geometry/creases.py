@@ -25,6 +25,8 @@ ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, o
 CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this make a crease
 FIT = 0.25  # the two planes must explain the surface this much better than the triangle
 CURVED_FIT = 0.2  # ... or, on a curved crease, this much better than its chord does
+SAME_SIDE_COS = float(np.cos(np.deg2rad(12.0)))  # two corners of one side: nearly one plane
+SOFTNESS = 4.0  # on a curved crease, the side is chosen softly over this many fit residuals
 
 
 @dataclass(frozen=True)
@@ -39,6 +41,8 @@ class Unfolding:
     point_b : (T, 3) a point of plane b.
     rotation : (T, 3, 3) and origin : (T, 3): a point X of plane b unfolds to
         ``origin + rotation @ (X - origin)``.
+    softness : (T,) metres over which the side of a point is blended (0: a straight
+        crease, the nearer plane's side).
     """
 
     points: FloatArray
@@ -49,9 +53,16 @@ class Unfolding:
     point_b: FloatArray
     rotation: FloatArray
     origin: FloatArray
+    softness: FloatArray
 
     def unfold_points(self, t: IntArray, X: FloatArray) -> FloatArray:
-        """Unfold surface points ``X`` (..., 3) lying in triangles ``t`` (...)."""
+        """Unfold surface points ``X`` (..., 3) lying in triangles ``t`` (...).
+
+        A point nearer plane b than plane a is rotated with it. At a curved crease the
+        two planes meet along a line that is not the crease, so a hard choice would tear
+        the map where the surface changes side; there the choice is blended over the
+        triangle's ``softness`` (metres of difference in the distances to the planes).
+        """
         out = X.copy()
         f = self.folded[t]
         if not np.any(f):
@@ -59,10 +70,13 @@ class Unfolding:
         tf, xf = t[f], X[f]
         da = np.abs(np.sum((xf - self.point_a[tf]) * self.normal_a[tf], axis=-1))
         db = np.abs(np.sum((xf - self.point_b[tf]) * self.normal_b[tf], axis=-1))
-        on_b = db < da
+        soft = self.softness[tf]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s = np.where(soft > 0, np.clip(0.5 + (da - db) / (2 * soft), 0.0, 1.0), 0.0)
+        share = np.where(soft > 0, s * s * (3 - 2 * s), (db < da).astype(np.float64))
         o = self.origin[tf]
         rotated = o + np.einsum("nij,nj->ni", self.rotation[tf], xf - o)
-        out[f] = np.where(on_b[:, None], rotated, xf)
+        out[f] = xf + share[:, None] * (rotated - xf)
         return out
 
 
@@ -103,6 +117,7 @@ def unfold_creases(
         nan3.copy(),
         np.tile(np.eye(3), (t_count, 1, 1)),
         np.zeros((t_count, 3)),
+        np.zeros(t_count),
     )
     n = triangle_normals(tri_pts)
     size = np.sqrt(
@@ -137,8 +152,9 @@ def unfold_creases(
         if groups is None:
             continue
         group_a, group_b = groups
-        na, pa = _plane(vn[tris[t, group_a]], tri_pts[t, group_a])
-        nb, pb = _plane(vn[tris[t, group_b]], tri_pts[t, group_b])
+        n_a, n_b = vn[tris[t, group_a]], vn[tris[t, group_b]]
+        na, pa = _plane(n_a, tri_pts[t, group_a], n_b.mean(axis=0))
+        nb, pb = _plane(n_b, tri_pts[t, group_b], n_a.mean(axis=0))
         # a crease only if the two planes explain the surface inside the triangle (a
         # strongly curved smooth patch, e.g. near a silhouette, is left as it is)
         probe = xs[t][np.all(np.isfinite(xs[t]), axis=1)]
@@ -158,6 +174,8 @@ def unfold_creases(
         unfolding.normal_a[t], unfolding.point_a[t] = na, pa
         unfolding.normal_b[t], unfolding.point_b[t] = nb, pb
         unfolding.rotation[t], unfolding.origin[t] = rot, origin
+        if worst > FIT * ROUGH * float(size[t]):  # a curved crease: soften the side choice
+            unfolding.softness[t] = SOFTNESS * worst
     return unfolding
 
 
@@ -182,9 +200,16 @@ def _crease_groups(normals: FloatArray) -> tuple[list[int], list[int]] | None:
     return (sorted(side), other) if 0 in side else (other, sorted(side))
 
 
-def _plane(normals: FloatArray, points: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """The plane (unit normal, point) of corners with normals ``normals`` (k, 3) at
-    ``points`` (k, 3): their mean normal through their mean point."""
+def _plane(
+    normals: FloatArray, points: FloatArray, other: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The plane (unit normal, point) of one side's corners, with normals ``normals``
+    (k, 3) at ``points`` (k, 3): their mean normal through their mean point; but when
+    their normals differ much (a corner on the crease itself has a mix of both sides'
+    normals), the corner farthest from the other side (its normal ``other``)."""
+    if normals.shape[0] > 1 and float(normals[0] @ normals[1]) < SAME_SIDE_COS:
+        k = int(np.argmin(normals @ other))
+        return normals[k], points[k]
     n = normals.sum(axis=0)
     return n / np.linalg.norm(n), points.mean(axis=0)
 

@@ -219,8 +219,15 @@ def content_aware(
         )
         return v, placement, iterations, fraction, {}
     timings["init"] = time.perf_counter() - t0
+    # the conformal warp's scale is set by two pinned vertices; the salient region's is
+    # that of the surface: start there (on a developable surface that is the answer)
+    e = mesh.edges
+    salient = (w[e[:, 0]] + w[e[:, 1]]) > 0
+    chord = np.linalg.norm(v_conformal[e[salient, 0]] - v_conformal[e[salient, 1]], axis=1)
+    scale = float(np.sum(mesh.lengths[salient]) / np.sum(chord))
+    start = Placement(placement.angle, placement.scale / scale, placement.offset, placement.centre)
     v, aware_placement, iterations, fraction = refine(
-        mesh, v_conformal, placement, content_map, settings, backend, timings
+        mesh, v_conformal * scale, start, content_map, settings, backend, timings
     )
     choice = guard(mesh, (v, aware_placement), (v_conformal, placement), content_map, settings.up)
     return choice.v, choice.placement, iterations, fraction, {"guard": choice.meta}
