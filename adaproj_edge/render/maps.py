@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -162,24 +163,30 @@ class PixelWeights:
         if not clip:
             return out, fell_back
         w, h = content_size
+        finite = np.isfinite(out).all(axis=2)
         with np.errstate(invalid="ignore"):
-            outside = (
-                ~np.isfinite(out).all(axis=2)
-                | (out[..., 0] < -0.5)
-                | (out[..., 0] > w - 0.5)
-                | (out[..., 1] < -0.5)
-                | (out[..., 1] > h - 0.5)
+            inside = (
+                finite
+                & (out[..., 0] >= -0.5)
+                & (out[..., 0] <= w - 0.5)
+                & (out[..., 1] >= -0.5)
+                & (out[..., 1] <= h - 0.5)
             )
-        out[outside] = np.nan
+        # the ring of pixels just past the content's border stays (the renderer shows
+        # it black, anti-aliased): where the content is shown smaller than the pixels
+        # its outermost columns lie between the last pixel in and the first one out
+        ring = np.asarray(cv2.dilate(inside.astype(np.uint8), np.ones((3, 3), np.uint8))) > 0
+        out[~(finite & ring)] = np.nan
         return out, fell_back
 
     def map(
         self, image_xy: FloatArray, content_size: tuple[int, int], clip: bool = True
     ) -> NDArray[np.float32]:
         """The (H, W, 2) float32 map for vertex content coordinates ``image_xy`` (R, C, 2);
-        NaN where the pixel shows black: no surface, or (``clip``) outside the content.
-        Without ``clip`` coordinates outside the content are kept (the renderer's
-        border turns them black, with an anti-aliased edge)."""
+        NaN where the pixel shows black: no surface, or (``clip``) outside the content
+        by more than one pixel (the ring just outside stays, for the renderer's
+        anti-aliased edge). Without ``clip`` every coordinate outside the content is
+        kept (the renderer's border turns them black)."""
         return self.checked_map(image_xy, content_size, clip)[0]
 
 

@@ -27,6 +27,7 @@ from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD, ContentMap
 from adaproj_edge.errors import InputError, WarpError
 from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.warp.adaptive import refine_grid
 from adaproj_edge.warp.anderson import Anderson
 from adaproj_edge.warp.guard import guard
 from adaproj_edge.warp.mesh import MeshGeometry, WarpCache, keeps_orientation
@@ -86,6 +87,9 @@ class WarpSettings:
     weights : the content-aware energy's weights
     alternation : "ours" (default) or "paper" (§4.2 as written: fixed boundary,
         regulariser toward the last iterate; kept for comparison)
+    adaptive : split the grid's columns and rows where the surface bends faster than
+        the grid samples it (:mod:`~adaproj_edge.warp.adaptive`); the warp's grid is
+        then finer there
     """
 
     mode: Mode = "content"
@@ -97,6 +101,7 @@ class WarpSettings:
     up: tuple[float, float, float] = DEFAULT_UP
     weights: ContentAwareWeights = field(default_factory=ContentAwareWeights)
     alternation: Alternation = "ours"
+    adaptive: bool = True
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -162,16 +167,26 @@ def compute_warp(
     timings: dict[str, Any] = {}
     t0 = time.perf_counter()
     mesh = MeshGeometry.build(surface, settings.grid, cache)
+    extra: dict[str, Any] = {}
+    if settings.adaptive:
+        refinement = refine_grid(surface, settings.grid, mesh.curved_cells)
+        if refinement.refined:
+            mesh = MeshGeometry.build(surface, refinement.grid, cache, refinement.grid_uv)
+            extra["mesh"] = str(refinement.grid)
+            extra["refined"] = {
+                "columns": refinement.factor_x.tolist(),
+                "rows": refinement.factor_y.tolist(),
+            }
     v = backend.conformal(mesh)
     timings["conformal"] = time.perf_counter() - t0
     iterations = 0
     salient_fraction = 0.0
-    extra: dict[str, Any] = {}
     if settings.mode == "content":
         cmap = _content_map(content_map, content_size, settings.threshold)
-        v, placement, iterations, salient_fraction, extra = content_aware(
+        v, placement, iterations, salient_fraction, guarded = content_aware(
             mesh, v, content_size, cmap, settings, backend, timings
         )
+        extra.update(guarded)
         timings["refine"] = time.perf_counter() - t0 - timings["init"]
     else:
         placement = place(mesh, v, content_size, settings.up)
@@ -375,7 +390,7 @@ def make_warp(
     themselves (the device runtime keeps solver state between updates)."""
     if not _orientation_ok(mesh, v):
         raise WarpError("the warp folds over; the surface is too irregular for this grid")
-    rows, cols = settings.grid.rows + 1, settings.grid.cols + 1
+    rows, cols = mesh.grid.rows + 1, mesh.grid.cols + 1
     image_xy = np.full((rows * cols, 2), np.nan)
     image_xy[mesh.verts] = placement.apply(v)
     depth = mesh.points[:, 2].copy()

@@ -116,6 +116,8 @@ class MeshGeometry:
     boundary : (B, 2) edges on the region's boundary (holes included).
     shapes : (T, 3, 2) each (unfolded) surface triangle in a 2D frame of its own plane
         (metres), oriented as the content is (y down).
+    curved : (T,) bool, the triangles a curved crease runs through (their unfolding is
+        only approximate: :mod:`~adaproj_edge.warp.adaptive` refines there).
     """
 
     grid: Grid
@@ -125,6 +127,7 @@ class MeshGeometry:
     coords: FloatArray
     lengths: FloatArray
     shapes: FloatArray
+    curved: NDArray[np.bool_]
 
     @property
     def used(self) -> NDArray[np.bool_]:
@@ -163,6 +166,12 @@ class MeshGeometry:
     def uv(self) -> FloatArray:
         """(n, 2) pixel positions of the compact vertices."""
         return self.grid_uv.reshape(-1, 2)[self.verts]
+
+    @property
+    def curved_cells(self) -> IntArray:
+        """Indices (row-major) of the grid cells a curved crease runs through."""
+        out: IntArray = np.unique(self.topology.rows[self.curved] // 2)
+        return out
 
     @property
     def pixel_areas(self) -> FloatArray:
@@ -216,7 +225,8 @@ class MeshGeometry:
         key = f"{grid.cols}x{grid.rows}:".encode() + np.packbits(keep).tobytes()
         topo = make() if cache is None else cache.topology(key, make)
         cand = topo.cand
-        tri_pts = unfold_creases(surface, uv[cand], cand, pts, probes[topo.rows]).points
+        unfolding = unfold_creases(surface, uv[cand], cand, pts, probes[topo.rows])
+        tri_pts = unfolding.points
         coords = conformal_coords(tri_pts)
         # edge lengths as the (unfolded) triangles have them; an edge shared by two
         # triangles gets the mean of their two values
@@ -224,7 +234,8 @@ class MeshGeometry:
         n_edges = topo.edges.shape[0]
         sums = np.bincount(topo.inverse, weights=tri_len.T.ravel(), minlength=n_edges)
         counts = np.bincount(topo.inverse, minlength=n_edges)
-        return cls(grid, grid_uv, pts, topo, coords, sums / counts, planar_shapes(tri_pts))
+        curved = unfolding.folded & (unfolding.softness > 0)
+        return cls(grid, grid_uv, pts, topo, coords, sums / counts, planar_shapes(tri_pts), curved)
 
 
 def keeps_orientation(mesh: MeshGeometry, v: FloatArray) -> bool:
