@@ -26,8 +26,8 @@ from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import grid_triangles, triangle_normals
 
-BAND = 6.0  # pixels either side of an edge where the two triangles' places are blended
-BAND_SHARE = 0.3  # ... at most this share of the triangle's smallest height
+BAND = 12.0  # pixels either side of an edge where the two triangles' places are blended
+BAND_SHARE = 0.4  # ... at most this share of the triangle's smallest height
 
 
 def grid_neighbours(rows: int, cols: int) -> IntArray:

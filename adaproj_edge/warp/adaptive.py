@@ -4,8 +4,12 @@ grid samples it.
 Inside a grid cell the display maps each pixel through the plane of its triangle, so
 the error grows with the cell's bend ``kappa h`` (normal curvature times the cell's
 size on the surface, both along one grid direction): on a corrugated wall whose waves
-are two cells long ``kappa h`` is above 1 and the map is 4 % off; at 0.15 it is exact
-to 1e-4. :func:`refine_grid` measures ``kappa h`` along x and along y in every cell of
+are two cells long ``kappa h`` is above 1 and the map is 4 % off; at 0.1 it is exact
+to 2e-4. A cell that bends one way only (a developable surface) is split down to
+:data:`BEND_ONE_WAY`: there this error is all the display has; one that bends both
+ways (a dome) to :data:`BEND`, as its own distortion is far larger.
+
+:func:`refine_grid` measures ``kappa h`` along x and along y in every cell of
 the base grid, from the surface itself (second differences every :data:`SAMPLE`
 pixels, so relief a third of a cell wide is seen), and splits each column and each
 row of cells into as many as its worst cell needs (at most :data:`MAX_FACTOR`, and
@@ -31,6 +35,10 @@ from adaproj_edge.warp.warpmap import Grid
 
 SAMPLE = 8  # pixels between the surface samples of the bend measure
 BEND = 0.15  # kappa h a cell may have before it is split
+# ... where it bends one way only (as a developable surface does: its display is exact
+# but for this error, so it is kept smaller); "one way": the other bend is this smaller
+BEND_ONE_WAY = 0.08
+ONE_WAY = 0.2
 MAX_FACTOR = 8  # at most this many columns (rows) out of one
 CREASE_FACTOR = 4  # cells a curved crease crosses are split this many times both ways
 BUDGET = 7000  # vertices at most
@@ -165,8 +173,10 @@ def refine_grid(
     if curved is not None and curved.size:
         flat[curved] = 1.0
     creased = flat.reshape(grid.rows, grid.cols)
-    need_x = np.maximum(np.ceil(bx / BEND), CREASE_FACTOR * creased)
-    need_y = np.maximum(np.ceil(by / BEND), CREASE_FACTOR * creased)
+    one_way = np.minimum(bx, by) < ONE_WAY * np.maximum(bx, by)
+    limit = np.where(one_way, BEND_ONE_WAY, BEND)
+    need_x = np.maximum(np.ceil(bx / limit), CREASE_FACTOR * creased)
+    need_y = np.maximum(np.ceil(by / limit), CREASE_FACTOR * creased)
     # at most MAX_FACTOR, and no line closer than MIN_SPACING pixels to the next
     most_x = np.minimum(MAX_FACTOR, np.diff(base[0, :, 0]) // MIN_SPACING)
     most_y = np.minimum(MAX_FACTOR, np.diff(base[:, 0, 1]) // MIN_SPACING)
