@@ -25,6 +25,7 @@ from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.triangles import unique_edges
 
 RASTER = 256
+TOLERANCE = 4e-4  # the search stops at steps this small (of the region's extent)
 _SHIFT = 4
 _DIRECTIONS = np.array(
     [[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=np.float64
@@ -49,6 +50,33 @@ def boundary_edges(tris: IntArray) -> IntArray:
     uniq, _, counts = unique_edges(e, int(tris.max()) + 1)
     out: IntArray = uniq[counts == 1]
     return out
+
+
+def boundary_loops(edges: IntArray) -> list[IntArray] | None:
+    """The boundary edges (E, 2) chained into closed loops of vertex indices; None when
+    they do not chain simply (a vertex on more than two boundary edges)."""
+    nxt: dict[int, list[int]] = {}
+    for a, b in edges.tolist():
+        nxt.setdefault(a, []).append(b)
+        nxt.setdefault(b, []).append(a)
+    if any(len(x) != 2 for x in nxt.values()):
+        return None
+    loops, seen = [], set()
+    for start in nxt:
+        if start in seen:
+            continue
+        loop, prev, cur = [start], -1, start
+        seen.add(start)
+        while True:
+            a, b = nxt[cur]
+            step = b if a == prev else a
+            if step == start:
+                break
+            loop.append(step)
+            seen.add(step)
+            prev, cur = cur, step
+        loops.append(np.array(loop, dtype=np.intp))
+    return loops
 
 
 def linf_clearance(c: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
@@ -78,7 +106,9 @@ def linf_distances(c: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
     return out
 
 
-def _raster_start(v: FloatArray, tris: IntArray, resolution: int) -> tuple[FloatArray, float]:
+def _raster_start(
+    v: FloatArray, tris: IntArray, resolution: int, boundary: IntArray | None = None
+) -> tuple[FloatArray, float]:
     """Centre (2,) of the largest square in a raster of the region, and the cell size."""
     lo = v.min(axis=0)
     hi = v.max(axis=0)
@@ -89,8 +119,12 @@ def _raster_start(v: FloatArray, tris: IntArray, resolution: int) -> tuple[Float
     origin = lo - 1.5 * cell
     shape = (int(np.ceil((hi[1] - lo[1]) / cell)) + 4, int(np.ceil((hi[0] - lo[0]) / cell)) + 4)
     mask = np.zeros(shape, dtype=np.uint8)
-    q = np.rint((v[tris] - origin) / cell * (1 << _SHIFT)).astype(np.int32)
-    cv2.fillPoly(mask, list(q), 1, lineType=cv2.LINE_8, shift=_SHIFT)
+    q = np.rint((v - origin) / cell * (1 << _SHIFT)).astype(np.int32)
+    loops = None if boundary is None else boundary_loops(boundary)
+    if loops is not None:  # the region's outline (holes included: filled even-odd)
+        cv2.fillPoly(mask, [q[loop] for loop in loops], 1, lineType=cv2.LINE_8, shift=_SHIFT)
+    else:
+        cv2.fillPoly(mask, list(q[tris]), 1, lineType=cv2.LINE_8, shift=_SHIFT)
     dist = cv2.distanceTransform(mask, cv2.DIST_C, 3)
     _, best, _, loc = cv2.minMaxLoc(dist)
     if best < 1:
@@ -131,7 +165,7 @@ def inscribed_rectangle(
     edges = boundary_edges(tris) if boundary is None else boundary
     p0, p1 = q[edges[:, 0]], q[edges[:, 1]]
     extent = float(np.max(np.ptp(q, axis=0)))
-    tol = 1e-4 * extent
+    tol = TOLERANCE * extent
     r = -1.0
     if start is not None:
         c = np.asarray(start, dtype=np.float64) * np.array([1.0, aspect])
@@ -140,7 +174,7 @@ def inscribed_rectangle(
         if not _inside(c, q, tris):
             r = -1.0
     if r <= 0:
-        c, step = _raster_start(q, tris, resolution)
+        c, step = _raster_start(q, tris, resolution, edges)
         r = float(linf_clearance(c, p0, p1))
     c, r = _climb(c, r, step, tol, p0, p1)
     return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
@@ -176,8 +210,9 @@ def _search(
     reach: float,
 ) -> tuple[FloatArray, float] | None:
     """Pattern search, four step sizes per evaluation (step, step/2, step/4, step/8):
-    move to the best trial that improves r and carry on at its step size; when none
-    does, the step shrinks 16-fold. None if the centre goes farther than ``reach``."""
+    move to the best trial that improves r and carry on at its step size (twice it
+    after a move at the full step: the optimum may be far); when none improves, the
+    step shrinks 16-fold. None if the centre goes farther than ``reach``."""
     start = c
     while step > tol:
         trial = (c + step * _PATTERN).reshape(-1, 2)
@@ -185,7 +220,8 @@ def _search(
         k = int(np.argmax(rt))
         if rt[k] > r:
             c, r = trial[k], float(rt[k])
-            step *= _SCALES[k // _DIRECTIONS.shape[0]]
+            scale = k // _DIRECTIONS.shape[0]
+            step *= 2.0 if scale == 0 else _SCALES[scale]
             if float(np.max(np.abs(c - start))) > reach:
                 return None
         else:

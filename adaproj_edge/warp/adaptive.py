@@ -43,6 +43,7 @@ MAX_FACTOR = 8  # at most this many columns (rows) out of one
 CREASE_FACTOR = 4  # cells a curved crease crosses are split this many times both ways
 BUDGET = 7000  # vertices at most
 MIN_SPACING = 4  # pixels between two lines at least
+QUICK = 0.9  # a quick look that sees no bend above this share of the least limit ends it
 
 
 @dataclass(frozen=True)
@@ -100,14 +101,18 @@ def _split(lines: FloatArray, factors: IntArray) -> FloatArray:
     return merged
 
 
-def bends(surface: Surface, grid_uv: FloatArray) -> tuple[FloatArray, FloatArray]:
+def bends(
+    surface: Surface, grid_uv: FloatArray, sample: float = SAMPLE, kinks: bool = False
+) -> tuple[FloatArray, FloatArray]:
     """``kappa h`` along x and along y, the worst in each cell of the grid whose vertices
-    are ``grid_uv`` (R + 1, C + 1, 2): two (R, C) arrays (0 where unknown)."""
-    # the surface's own nodes about SAMPLE pixels apart (no resampling: cheap)
+    are ``grid_uv`` (R + 1, C + 1, 2): two (R, C) arrays (0 where unknown). From the
+    surface's nodes about ``sample`` pixels apart; a kink one or two samples wide (a
+    crease) counts only with ``kinks``."""
+    # the surface's own nodes about `sample` pixels apart (no resampling: cheap)
     sx, sy = surface.lattice_scale()
-    kx, ky = max(1, round(SAMPLE / sx)), max(1, round(SAMPLE / sy))
+    kx, ky = max(1, round(sample / sx)), max(1, round(sample / sy))
     # component planes (x, y, z), each a contiguous 2D array: fast elementwise sums
-    X = np.moveaxis(surface.points[::ky, ::kx], -1, 0).astype(np.float64)
+    X = np.moveaxis(surface.points[::ky, ::kx], -1, 0).astype(np.float32)
     h, w = surface.shape
     xs = np.arange(0, w, kx) * sx  # the nodes' pixel positions
     ys = np.arange(0, h, ky) * sy
@@ -131,11 +136,9 @@ def bends(surface: Surface, grid_uv: FloatArray) -> tuple[FloatArray, FloatArray
         by = np.abs(n[0] * ddy[0] + n[1] * ddy[1] + n[2] * ddy[2]) / (
             length * np.sqrt(dy[0] ** 2 + dy[1] ** 2 + dy[2] ** 2)
         )
-    # a crease is a kink one or two samples wide: what bends over three samples is curvature
-    bx = np.fmin(np.fmin(bx[:, :-2], bx[:, 1:-1]), bx[:, 2:])
-    by = np.fmin(np.fmin(by[:-2], by[1:-1]), by[2:])
-    bx = np.pad(bx, ((0, 0), (1, 1)))
-    by = np.pad(by, ((1, 1), (0, 0)))
+    if not kinks:  # a crease is one or two samples wide: curvature bends over three
+        bx = np.pad(np.fmin(np.fmin(bx[:, :-2], bx[:, 1:-1]), bx[:, 2:]), ((0, 0), (1, 1)))
+        by = np.pad(np.fmin(np.fmin(by[:-2], by[1:-1]), by[2:]), ((1, 1), (0, 0)))
     cols, rows = grid_uv[0, :, 0], grid_uv[:, 0, 1]
     ci = np.clip(np.searchsorted(cols, xs[1:-1], side="right") - 1, 0, cols.size - 2)
     ri = np.clip(np.searchsorted(rows, ys[1:-1], side="right") - 1, 0, rows.size - 2)
@@ -159,6 +162,13 @@ def bends(surface: Surface, grid_uv: FloatArray) -> tuple[FloatArray, FloatArray
     return out[0], out[1]
 
 
+def _limits(bx: FloatArray, by: FloatArray) -> FloatArray:
+    """The bend each cell may have: less where it bends one way only (developable)."""
+    one_way = np.minimum(bx, by) < ONE_WAY * np.maximum(bx, by)
+    out: FloatArray = np.where(one_way, BEND_ONE_WAY, BEND)
+    return out
+
+
 def refine_grid(
     surface: Surface, grid: Grid, curved: IntArray | None = None, budget: int = BUDGET
 ) -> Refinement:
@@ -168,13 +178,21 @@ def refine_grid(
     grid knows them: :attr:`~adaproj_edge.warp.mesh.MeshGeometry.curved_cells`).
     """
     base = grid.vertices(surface.projector)
+    none = Refinement(
+        base[0, :, 0], base[:, 0, 1], np.ones(grid.cols, np.intp), np.ones(grid.rows, np.intp)
+    )
+    if curved is None or curved.size == 0:
+        # a quick look first, twice as sparse and creases included: a surface that is
+        # smooth at the grid's scale needs no closer one
+        cx, cy = bends(surface, base, 2 * SAMPLE, kinks=True)
+        if np.all(np.maximum(cx, cy) < QUICK * _limits(cx, cy)):
+            return none
     bx, by = bends(surface, base)
     flat = np.zeros(grid.rows * grid.cols)
     if curved is not None and curved.size:
         flat[curved] = 1.0
     creased = flat.reshape(grid.rows, grid.cols)
-    one_way = np.minimum(bx, by) < ONE_WAY * np.maximum(bx, by)
-    limit = np.where(one_way, BEND_ONE_WAY, BEND)
+    limit = _limits(bx, by)
     need_x = np.maximum(np.ceil(bx / limit), CREASE_FACTOR * creased)
     need_y = np.maximum(np.ceil(by / limit), CREASE_FACTOR * creased)
     # at most MAX_FACTOR, and no line closer than MIN_SPACING pixels to the next

@@ -41,21 +41,22 @@ class Anderson:
         self._f.append(f)
         self._g.append(gx)
         if len(self._f) > self.depth + 1:
-            self._f.pop(0)
-            self._g.pop(0)
-        if len(self._f) < 2:
+            del self._f[0], self._g[0]
+        m = len(self._f) - 1
+        if m < 1:
             return gx
-        df = np.diff(np.stack(self._f, axis=1), axis=1)
-        dg = np.diff(np.stack(self._g, axis=1), axis=1)
+        df = [self._f[k + 1] - self._f[k] for k in range(m)]
         # the least-squares mix by its (small) normal equations, lightly regularised
-        gram = df.T @ df
+        gram = np.array([[float(a @ b) for b in df] for a in df])
         gram[np.diag_indices_from(gram)] *= 1.0 + 1e-10
         try:
-            gamma = np.linalg.solve(gram, df.T @ f)
+            gamma = np.linalg.solve(gram, np.array([float(a @ f) for a in df]))
         except np.linalg.LinAlgError:
             self.reset()
             return gx
-        out: FloatArray = gx - dg @ gamma
+        out = gx.copy()
+        for k in range(m):
+            out -= gamma[k] * (self._g[k + 1] - self._g[k])
         if not np.all(np.isfinite(out)):
             self.reset()
             return gx
