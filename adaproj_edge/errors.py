@@ -51,8 +51,23 @@ class LinkError(DeviceError):
     """The serial link to the device failed, or its SMP server refused a request."""
 
 
+class LinkTimeoutError(LinkError):
+    """The device did not answer a request in time: a frame lost to line noise, or no
+    device (or no ``adaproj link``) on the other end. Sending it again may help."""
+
+
+class LinkGarbledError(LinkError):
+    """A reply from the device arrived damaged (bad CRC, cut short, another request's
+    sequence number). Sending the request again may help."""
+
+
 class ContentError(InputError):
     """Content refused by the device's store: a bad name, too big, not an image."""
+
+
+class VideoError(ContentError):
+    """A video clip cannot be used: not a video, unsupported codec, too large or long,
+    no frames, truncated or corrupt."""
 
 
 class ContentNotFoundError(ContentError):

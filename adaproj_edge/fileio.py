@@ -2,13 +2,14 @@
 
 Nothing written to storage is ever half-written: every write goes to a temporary file
 in the same directory, is fsynced, renamed into place, and the directory is fsynced.
+Files are created as ``open()`` creates them (mode 0666 less the process's umask).
 """
 
 from __future__ import annotations
 
 import io
 import os
-import tempfile
+import secrets
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
@@ -20,6 +21,9 @@ from numpy.typing import NDArray
 from adaproj_edge.errors import ImageError, InputError
 
 MAX_IMAGE_PIXELS = 40_000_000
+
+IMAGE_FORMATS = {".png": ".png", ".jpg": ".jpg", ".jpeg": ".jpg"}
+"""File name extensions :func:`write_image` writes (lower case), and their encoders."""
 
 
 def fsync_dir(directory: Path) -> None:
@@ -41,7 +45,7 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], Any]
     path = Path(path)
     directory = path.parent
     directory.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    fd, tmp = _create_temp(directory, path.name)
     try:
         with os.fdopen(fd, "wb") as f:
             write(f)
@@ -53,6 +57,22 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], Any]
             os.unlink(tmp)
         raise
     fsync_dir(directory)
+
+
+def _create_temp(directory: Path, name: str) -> tuple[int, Path]:
+    """A new, empty temporary file for ``name`` in ``directory``, opened for writing.
+
+    Made with ``O_EXCL`` and mode 0666, so the umask applies as to any new file (not
+    ``mkstemp``'s 0600: the output of a command is the user's to share).
+    """
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(100):
+        tmp = directory / f".{name}.{secrets.token_hex(4)}.tmp"
+        try:
+            return os.open(tmp, flags, 0o666), tmp
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no free temporary name for {name} in {directory}")
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
@@ -67,10 +87,39 @@ def atomic_savez(path: str | os.PathLike[str], **arrays: Any) -> None:
 
 
 def write_png(path: str | os.PathLike[str], image: NDArray[Any]) -> None:
-    """Write an image (gray or BGR, uint8) as PNG atomically."""
-    ok, enc = cv2.imencode(".png", np.ascontiguousarray(image))
+    """Write an image (gray or BGR, uint8) as PNG atomically, whatever its name."""
+    _write_encoded(path, image, ".png")
+
+
+def write_image(path: str | os.PathLike[str], image: NDArray[Any]) -> None:
+    """Write an image atomically, encoded as its name's extension says.
+
+    Parameters
+    ----------
+    path : path
+        Where to write; the extension picks the format (:data:`IMAGE_FORMATS`: PNG or
+        JPEG).
+    image : (H, W) or (H, W, 3) uint8 array
+        Gray or BGR.
+
+    Raises
+    ------
+    ImageError
+        For any other extension (nothing is written).
+    """
+    ext = IMAGE_FORMATS.get(Path(path).suffix.lower())
+    if ext is None:
+        raise ImageError(
+            f"cannot tell the image format of {path}: name it "
+            + " or ".join(f"*{e}" for e in IMAGE_FORMATS)
+        )
+    _write_encoded(path, image, ext)
+
+
+def _write_encoded(path: str | os.PathLike[str], image: NDArray[Any], ext: str) -> None:
+    ok, enc = cv2.imencode(ext, np.ascontiguousarray(image))
     if not ok:
-        raise ImageError(f"cannot encode image of shape {image.shape} as PNG")
+        raise ImageError(f"cannot encode image of shape {image.shape} as {ext}")
     atomic_write_bytes(path, enc.tobytes())
 
 
@@ -123,6 +172,8 @@ def load_npz(
     naming ``what``; the file is read whole first, so no handle is left open.
     """
     data = read_input(path, what, error)
+    if not data.startswith(b"PK"):  # an .npz is a zip file; np.load would try pickle
+        raise error(f"cannot read {what} {path}: not an .npz file (numpy's zip of arrays)")
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as f:
             arrays = {k: np.asarray(f[k]) for k in f.files}

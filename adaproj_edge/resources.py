@@ -1,5 +1,6 @@
 """Files the product ships beside its code: board files and calibrations (``hw/``), the
-saliency model (``models/``) and the built-in recording (``adaproj_edge/data/``).
+saliency model and the face cascade (``models/``) and the built-in recording
+(``adaproj_edge/data/``).
 
 ``adaproj_edge/hw`` and ``adaproj_edge/models`` are symbolic links to the repository's
 top-level ``hw/`` and ``models/``: a checkout (an editable install, ``tools/adaproj``)
@@ -22,6 +23,11 @@ def boards_dir() -> Path:
 def default_model() -> Path:
     """The default saliency model (``models/gbvs_saliency.onnx``)."""
     return PACKAGE / "models" / "gbvs_saliency.onnx"
+
+
+def face_cascade() -> Path:
+    """The face detector's cascade (``models/lbpcascade_frontalface.xml``)."""
+    return PACKAGE / "models" / "lbpcascade_frontalface.xml"
 
 
 def default_session() -> Path:

@@ -23,29 +23,23 @@ Targets on one core: content-aware update <= 33 ms p95 at the default grid, cach
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-
 import argparse
+import os
 import sys
 import tempfile
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from adaproj_edge.app.pipeline import WarpPipeline  # noqa: E402
-from adaproj_edge.app.posecache import PoseCache  # noqa: E402
 from adaproj_edge.app.replay import ReplayOptions, replay_session  # noqa: E402
-from adaproj_edge.app.runtime import AppSettings  # noqa: E402
+from adaproj_edge.app.settings import AppSettings  # noqa: E402
+from adaproj_edge.arrays import FloatArray  # noqa: E402
 from adaproj_edge.geometry.calibration import Calibration  # noqa: E402
 from adaproj_edge.session.records import TruthPose  # noqa: E402
 from adaproj_edge.session.simulator import (  # noqa: E402
@@ -54,7 +48,10 @@ from adaproj_edge.session.simulator import (  # noqa: E402
     simulate_session,
     true_surface,
 )
+from adaproj_edge.threads import apply_thread_policy  # noqa: E402
 from adaproj_edge.warp.engine import WarpSettings  # noqa: E402
+from adaproj_edge.warp.planner import WarpPlanner  # noqa: E402
+from adaproj_edge.warp.posecache import PoseCache  # noqa: E402
 
 STAGES = [
     "surface",
@@ -86,6 +83,12 @@ def _best(runs: list[dict[str, Any]], stage: str) -> dict[str, Any] | None:
     return min(got, key=lambda t: t["median_ms"]) if got else None
 
 
+@dataclass
+class _Entry:
+    depth: FloatArray
+    frames: int = 1
+
+
 def cache_hit_cost(repeats: int = 2000) -> tuple[float, float]:
     """Median and p95 (ms) of a pose-cache hit (lookup + depth check) on the default
     21x21 lattice with 8 entries."""
@@ -93,11 +96,11 @@ def cache_hit_cost(repeats: int = 2000) -> tuple[float, float]:
     scene = Scene.load("cylinder-convex")
     origin = TruthPose(0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
     surface = true_surface(scene, origin, cal.projector, (21, 21))
-    pipeline = WarpPipeline(cal.projector)
-    entry = pipeline.content_free(surface, (960, 600), WarpSettings())
-    cache = PoseCache(8)
+    cf = WarpPlanner(cal.projector).content_free(surface, (960, 600), WarpSettings())
+    entry = _Entry(cf.depth)
+    cache: PoseCache[_Entry] = PoseCache(8)
     for k in range(8):
-        cache.put((k,), replace(entry, depth=entry.depth * (1 + 0.02 * k)))
+        cache.put((k,), _Entry(entry.depth * (1 + 0.02 * k)))
     times = []
     for i in range(repeats):
         k = i % 8
@@ -111,6 +114,7 @@ def cache_hit_cost(repeats: int = 2000) -> tuple[float, float]:
 
 
 def main() -> int:
+    apply_thread_policy(1)  # one thread: the figures are per core
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -119,7 +123,6 @@ def main() -> int:
     ap.add_argument("--scene", default="cylinder-convex", help="surface of the simulated session")
     ap.add_argument("--repeat", type=int, default=2, help="runs of each (best one reported)")
     args = ap.parse_args()
-    cv2.setNumThreads(1)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     with tempfile.TemporaryDirectory() as tmp:

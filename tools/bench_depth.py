@@ -3,10 +3,10 @@
 replaced, in the same run.
 
 Every depth frame of the committed sessions (cylinder, corner, sphere) goes through the
-reference (``tests/test_depth_fast.py``: ``depth.py`` as it was before the speed-up,
+reference (``tests/geometry/test_depth_fast.py``: ``depth.py`` as it was before the speed-up,
 the side-window fits on the whole supersampled lattice) and through
 ``adaproj_edge.geometry.depth.estimate_surface``, interleaved, on one core
-(``OPENBLAS_NUM_THREADS=1``, ``cv2.setNumThreads(1)``). Prints median and p95 wall
+(``apply_thread_policy(1)``: one BLAS and OpenCV thread). Prints median and p95 wall
 time per frame in ms and the ratio, for the warp grid's lattice and a dense one.
 
     .venv/bin/python tools/bench_depth.py [--repeat 3] [--shapes 21x21,50x80]
@@ -14,36 +14,31 @@ time per frame in ms and the ratio, for the warp grid's lattice and a dense one.
 
 from __future__ import annotations
 
-import os
+import argparse
+import sys
+import time
+import warnings
+from pathlib import Path
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"  # one core, as the target says; set before numpy loads
-
-import argparse  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-import warnings  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))  # for tests.test_depth_fast (the reference)
+sys.path.insert(0, str(ROOT))  # for tests.geometry.test_depth_fast (the reference)
 
-from adaproj_edge.geometry.depth import estimate_surface  # noqa: E402
+from adaproj_edge.geometry.depth.estimate import estimate_surface  # noqa: E402
 from adaproj_edge.session.reader import read_session  # noqa: E402
-from tests.test_depth_fast import ref_estimate_surface  # noqa: E402
+from adaproj_edge.threads import apply_thread_policy  # noqa: E402
+from tests.geometry.test_depth_fast import ref_estimate_surface  # noqa: E402
 
 SESSIONS = ("cylinder", "corner", "sphere")
 
 
 def main() -> None:
+    apply_thread_policy(1)  # one thread: the figures are per core
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3, help="passes over all frames")
     ap.add_argument("--shapes", default="21x21,50x80", help="lattice shapes, rows x cols")
     args = ap.parse_args()
-    cv2.setNumThreads(1)
     # fill_holes (old and new alike) warns on holes without known neighbours yet
     warnings.filterwarnings("ignore", "Mean of empty slice", RuntimeWarning)
     frames = []

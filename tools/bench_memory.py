@@ -15,10 +15,6 @@ session; growth shows as a steady positive slope).
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-
 import argparse
 import sys
 import tempfile
@@ -36,11 +32,13 @@ from adaproj_edge.session.simulator import (  # noqa: E402
     SimulationSettings,
     simulate_session,
 )
+from adaproj_edge.threads import apply_thread_policy  # noqa: E402
 
 LIMIT_MB = 300.0
 
 
 def main() -> int:
+    apply_thread_policy(1)  # one thread: the figures are per core
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )

@@ -15,28 +15,24 @@ resolutions, the evidence for the default's choice.
 
 from __future__ import annotations
 
-import os
+import argparse
+import dataclasses
+import importlib.util
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"
+import cv2
+import numpy as np
 
-import argparse  # noqa: E402
-import dataclasses  # noqa: E402
-import importlib.util  # noqa: E402
-import statistics  # noqa: E402
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from collections.abc import Callable  # noqa: E402
-from pathlib import Path  # noqa: E402
-from typing import Any  # noqa: E402
-
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-
-from adaproj_edge.content import gbvs  # noqa: E402
-from adaproj_edge.content.contentmap import content_map_for  # noqa: E402
-from adaproj_edge.content.model import DEFAULT_MODEL_PATH, SaliencyModel, to_input  # noqa: E402
+from adaproj_edge.content import gbvs
+from adaproj_edge.content.contentmap import content_map_for
+from adaproj_edge.content.model import DEFAULT_MODEL_PATH, SaliencyModel, to_input
+from adaproj_edge.threads import apply_thread_policy
 
 DEVICE = (1280, 800)
 
@@ -92,12 +88,12 @@ def sweep(image: np.ndarray, runs: int) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    apply_thread_policy(1)  # one thread: the figures are per core
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH)
     parser.add_argument("--runs", type=int, default=50)
     parser.add_argument("--sweep", action="store_true", help="time other working resolutions")
     args = parser.parse_args(argv)
-    cv2.setNumThreads(1)
 
     image = device_image()
     model = SaliencyModel(args.model, threads=1)

@@ -9,7 +9,7 @@ For each grid and doubly curved surface, ``content`` mode with an off-centre sub
   term and solved with ``spsolve`` every iteration, until the mean vertex motion is
   below 0.05 px or after 10 iterations); ``compute_warp(..., alternation="paper",
   backend=REFERENCE)``.
-* ``ours cold`` - :func:`~adaproj_edge.warp.engine.compute_warp` from scratch.
+* ``ours cold`` - :func:`~adaproj_edge.warp.planner.compute_warp` from scratch.
 * ``ours cached`` - the same with a :class:`~adaproj_edge.warp.mesh.WarpCache` that has
   seen the scene (mesh topology and solver structures kept, as the device does).
 
@@ -23,24 +23,21 @@ it used, and the guard's choice.
 
 from __future__ import annotations
 
-import os
+import argparse
+import statistics
+import time
+from typing import Any
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"  # one core, as the target says; set before numpy loads
+import numpy as np
 
-import argparse  # noqa: E402
-import statistics  # noqa: E402
-import time  # noqa: E402
-from typing import Any  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from adaproj_edge.geometry.analytic import FINE_DETAIL, simulate_surface  # noqa: E402
-from adaproj_edge.geometry.surface import Surface  # noqa: E402
-from adaproj_edge.warp.engine import FAST, Backend, WarpSettings, compute_warp  # noqa: E402
-from adaproj_edge.warp.mesh import WarpCache  # noqa: E402
-from adaproj_edge.warp.reference import REFERENCE  # noqa: E402
-from adaproj_edge.warp.warpmap import Grid, Warp  # noqa: E402
+from adaproj_edge.geometry.analytic import FINE_DETAIL, simulate_surface
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.threads import apply_thread_policy
+from adaproj_edge.warp.engine import FAST, Backend, WarpSettings
+from adaproj_edge.warp.mesh import WarpCache
+from adaproj_edge.warp.planner import compute_warp
+from adaproj_edge.warp.reference import REFERENCE
+from adaproj_edge.warp.warpmap import Grid, Warp
 
 CONTENT = (640, 400)
 
@@ -81,6 +78,7 @@ def row(name: str, grid: Grid, label: str, seconds: float, warp: Warp) -> None:
 
 
 def main() -> None:
+    apply_thread_policy(1)  # one thread: the figures are per core
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--grids", default="20,40")
     ap.add_argument("--surfaces", default="sphere-concave,bowl")

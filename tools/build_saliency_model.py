@@ -26,6 +26,7 @@ from onnx import TensorProto, helper, numpy_helper
 
 from adaproj_edge.content import gbvs
 from adaproj_edge.content.model import CONTRACT, CONTRACT_KEY, INPUT_NAME, OUTPUT_NAME
+from adaproj_edge.threads import apply_thread_policy
 
 OPSET = 17
 IR_VERSION = 8  # readable by onnxruntime >= 1.14
@@ -171,6 +172,7 @@ def model_bytes(params: gbvs.GBVSParams | None = None) -> bytes:
 
 
 def main(argv: list[str] | None = None) -> int:
+    apply_thread_policy()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="where to write the model")
     args = parser.parse_args(argv)

@@ -1,26 +1,30 @@
 #!/usr/bin/env python3
 """Fuzz the link's frame decoder and SMP dispatcher with hypothesis, at length.
 
-Two targets from ``tests/link/fuzz_cases.py`` (the test suite runs a slice of each):
+Three targets from ``tests/link/fuzz_cases.py`` (the test suite runs a slice of each):
 
 - ``wire``: byte streams (frames of malformed messages, mutated frames, stray
   delimiters, declared lengths up to 65535, noise) through ``FrameDecoder`` into the
   dispatcher; every decoded message's reply is checked and encoded back.
 - ``dispatch``: one malformed message straight into ``Server.handle``.
+- ``resync``: junk (stray partial frames, cut lines, noise with or without newlines),
+  then one intact frame of a good request: it must be decoded and answered, whatever
+  came before it (the decoder lives through the whole run, so every case also follows
+  the junk of the one before).
 
 Every input must leave the server standing: no exception, a well-formed reply (same
 group, sequence, command; op + 1) or nothing for what is not a request, never an
-"internal error", decoder buffers within their bounds. One server, store and decoder
-live through the whole run; hypothesis runs in batches of ``--batch`` inputs (each
-with its own seed), so its own records of what it generated are freed between
-batches. The process's resident memory after each batch shows whether the server
-keeps anything: it must level off.
+"internal error", decoder buffers within their bounds, no good frame lost after junk.
+One server, store and decoder live through the whole run; hypothesis runs in batches
+of ``--batch`` inputs (each with its own seed), so its own records of what it
+generated are freed between batches. The process's resident memory after each batch
+shows whether the server keeps anything: it must level off.
 
 Usage::
 
     .venv/bin/python tools/fuzz_link.py [--examples 100000] [--batch 5000] [--seed 0]
 
-``--examples`` is split evenly between the two targets.
+``--examples`` is split evenly between the three targets.
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from hypothesis import HealthCheck, given, seed, settings
 from hypothesis import strategies as st
@@ -44,7 +49,15 @@ from adaproj_edge.link.device import StandaloneDevice
 from adaproj_edge.link.framing import FrameDecoder
 from adaproj_edge.link.server import Server
 from adaproj_edge.link.store import ContentStore, Limits
-from tests.link.fuzz_cases import dispatch_target, messages, streams, wire_target
+from adaproj_edge.threads import apply_thread_policy
+from tests.link.fuzz_cases import (
+    dispatch_target,
+    messages,
+    resync_target,
+    resyncs,
+    streams,
+    wire_target,
+)
 
 
 def rss_mb() -> float:
@@ -77,16 +90,22 @@ class Target:
         config = settings(
             max_examples=n, deadline=None, database=None, suppress_health_check=list(HealthCheck)
         )
-        strategy: st.SearchStrategy[object] = streams() if self.name == "wire" else messages()
+        strategies: dict[str, st.SearchStrategy[Any]] = {
+            "wire": streams(),
+            "dispatch": messages(),
+            "resync": resyncs(),
+        }
 
         @seed(batch_seed)
         @config
-        @given(strategy)
-        def run(x: object) -> None:
+        @given(strategies[self.name])
+        def run(x: Any) -> None:
             if self.name == "wire":
-                self.timed(lambda: wire_target(self.server, self.decoder, x, self.seen))  # type: ignore[arg-type]
+                self.timed(lambda: wire_target(self.server, self.decoder, x, self.seen))
+            elif self.name == "resync":
+                self.timed(lambda: resync_target(self.server, self.decoder, x, self.seen))
             else:
-                self.timed(lambda: dispatch_target(self.server, x, self.seen))  # type: ignore[arg-type]
+                self.timed(lambda: dispatch_target(self.server, x, self.seen))
 
         run()
 
@@ -96,11 +115,13 @@ class Target:
             f"{self.name}: {self.count} inputs; replies: {s['success']} success, {s['error']} "
             f"SMP errors, {s['ignored']} ignored (not requests); frames decoded {d.frames}, "
             f"dropped {sum(d.dropped.values())} {dict(d.dropped)}; server counters "
-            f"{self.server.counters}; slowest input {self.slowest * 1000:.1f} ms"
+            f"{self.server.counters}; good frames found after junk {s['resynchronised']}; "
+            f"slowest input {self.slowest * 1000:.1f} ms"
         )
 
 
 def main() -> int:
+    apply_thread_policy()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--examples", type=int, default=100_000, help="inputs in all")
     ap.add_argument("--batch", type=int, default=5000, help="inputs per hypothesis run")
@@ -109,9 +130,9 @@ def main() -> int:
     logging.disable(logging.WARNING)  # every refusal is logged; millions of lines otherwise
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory() as tmp:
-        for name in ("wire", "dispatch"):
+        for name in ("wire", "dispatch", "resync"):
             target = Target(name, Path(tmp))
-            want = args.examples // 2
+            want = args.examples // 3
             i = 0
             while target.count < want:
                 before = target.count

@@ -52,6 +52,7 @@ from adaproj_edge.session import schemas  # noqa: E402
 from adaproj_edge.session.records import SerialTraffic  # noqa: E402
 from adaproj_edge.session.simulator import T0_NS, Scene, SimulationSettings, simulate  # noqa: E402
 from adaproj_edge.session.writer import SessionWriter  # noqa: E402
+from adaproj_edge.threads import apply_thread_policy  # noqa: E402
 from tests.app.golden import (  # noqa: E402
     FAULTS_SESSION,
     GOLDEN,
@@ -267,6 +268,7 @@ def make_goldens(only: list[str] | None = None) -> None:
 
 
 def main() -> int:
+    apply_thread_policy()
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )

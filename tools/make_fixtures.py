@@ -12,15 +12,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from adaproj_edge.geometry.calibration import Calibration
+from adaproj_edge.geometry.mesh_surface import ply_bytes, uv_sphere
+from adaproj_edge.session.digest import tracking_digest
+from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session
+from adaproj_edge.threads import apply_thread_policy
 
-from adaproj_edge.geometry.calibration import Calibration  # noqa: E402
-from adaproj_edge.geometry.mesh_surface import ply_bytes, uv_sphere  # noqa: E402
-from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 OUT = ROOT / "tests" / "fixtures" / "sessions"
 SECONDS = 3.0
@@ -51,14 +51,13 @@ def make_sessions() -> None:
 
 
 def make_golden() -> None:
-    from tests.session.golden import replay_outputs
-
-    golden = {name: replay_outputs(OUT / f"{name}.mcap", GRID) for name in FIXTURES}
+    golden = {name: tracking_digest(OUT / f"{name}.mcap", GRID) for name in FIXTURES}
     GOLDEN.write_text(json.dumps(golden, indent=1) + "\n")
     print(f"wrote {GOLDEN}")
 
 
 def main() -> int:
+    apply_thread_policy()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--golden", action="store_true", help="also rewrite the golden outputs")
     ap.add_argument("--golden-only", action="store_true", help="only rewrite the golden outputs")
@@ -71,4 +70,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

@@ -16,10 +16,6 @@ content-free warp in the pose cache.
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-
 import argparse
 import sys
 import tempfile
@@ -36,11 +32,13 @@ from adaproj_edge.session.simulator import (  # noqa: E402
     SimulationSettings,
     simulate_session,
 )
+from adaproj_edge.threads import apply_thread_policy  # noqa: E402
 
 SCENES = ("corner", "cylinder-convex", "sphere-convex", "bowl")
 
 
 def main() -> int:
+    apply_thread_policy()
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )

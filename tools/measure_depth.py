@@ -22,11 +22,13 @@ sys.path.insert(0, str(ROOT))
 from adaproj_edge.geometry.analytic import SURFACES  # noqa: E402
 from adaproj_edge.session.reader import read_session  # noqa: E402
 from adaproj_edge.session.simulator import scene_of_session  # noqa: E402
-from tests.test_depth_accuracy import FIXTURES, grid_errors  # noqa: E402
-from tests.test_depth_warp import distortions  # noqa: E402
+from adaproj_edge.threads import apply_thread_policy  # noqa: E402
+from tests.geometry.test_depth_accuracy import FIXTURES, grid_errors  # noqa: E402
+from tests.geometry.test_depth_warp import distortions  # noqa: E402
 
 
 def main() -> int:
+    apply_thread_policy()
     print("surface at grid vertices (all frames of each fixture)")
     for name in ("corner", "cylinder", "sphere", "mesh-sphere"):
         s = read_session(FIXTURES / f"{name}.mcap")

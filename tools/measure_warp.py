@@ -18,21 +18,20 @@ surfaces), and the paper's alternation as written for comparison.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from adaproj_edge.geometry.analytic import SURFACES
+from adaproj_edge.threads import apply_thread_policy
 from tests.distortion import in_mask, visible_fraction
 from tests.warp.conftest import CONTENT, distortion, subject_masks, warped
 
 
 def main() -> None:
+    apply_thread_policy()
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--surfaces", default=",".join(SURFACES))
     ap.add_argument("--masks", default=",".join(subject_masks()))

@@ -17,16 +17,17 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
+from adaproj_edge.app.content import builtin_item
+from adaproj_edge.app.inputs import RECORDED, Input, SourceFault, feed
 from adaproj_edge.app.memory import pin_mmap_threshold
-from adaproj_edge.app.replay import builtin_item
-from adaproj_edge.app.runtime import AppSettings, Runtime
+from adaproj_edge.app.runtime import Runtime
+from adaproj_edge.app.settings import AppSettings
 from adaproj_edge.errors import AdaprojError, DeviceError
 from adaproj_edge.hal.board import Board
-from adaproj_edge.hal.button import ButtonEvent, EvdevButton
+from adaproj_edge.hal.button import EvdevButton
 from adaproj_edge.hal.clock import Clock, MonotonicClock
-from adaproj_edge.hal.depth import DepthFrame, OakDepthCamera
+from adaproj_edge.hal.depth import OakDepthCamera
 from adaproj_edge.hal.display import FramebufferDisplay
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
@@ -38,9 +39,7 @@ from adaproj_edge.session.writer import SessionWriter
 
 log = logging.getLogger(__name__)
 
-Reader = Callable[[], Any]
-RECORDED = ("depth", "imu", "button")
-"""Input kinds a session holds as records."""
+Reader = Callable[[], Input | None]
 
 
 @dataclass
@@ -53,7 +52,7 @@ class _Source:
 
 def _pump(
     src: _Source,
-    out: queue.Queue[tuple[str, Any]],
+    out: queue.Queue[Input],
     stop: threading.Event,
     clock: Clock,
     retry_s: float,
@@ -66,27 +65,11 @@ def _pump(
                 log.info("%s open", src.name)
             item = read()
             if item is not None:
-                out.put((src.name, item))
+                out.put(item)
         except AdaprojError as e:
-            out.put((src.name + "-error", str(e)))
+            out.put(SourceFault(src.name, str(e)))
             read = None
             clock.sleep_until(clock.now_ns() + int(retry_s * 1e9))
-
-
-def dispatch(runtime: Runtime, kind: str, item: Any) -> None:
-    """Hand one queued input to the runtime."""
-    if kind == "depth" and isinstance(item, DepthFrame):
-        runtime.on_depth(item)
-    elif kind == "imu" and isinstance(item, ImuSample):
-        runtime.on_imu(item)
-    elif kind == "button" and isinstance(item, ButtonEvent):
-        runtime.on_button(item)
-    elif kind == "depth-error":
-        runtime.on_depth_error(str(item))
-    elif kind == "imu-error":
-        runtime.on_imu_error(str(item))
-    elif kind == "button-error":
-        log.error("button: %s", item)
 
 
 @dataclass
@@ -107,7 +90,7 @@ def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float
     this thread until ``stop`` is set (or an interrupt); the recording is closed last."""
     stop = stop or threading.Event()
     runtime, server, tap = device.runtime, device.server, device.tap
-    inputs: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=256)
+    inputs: queue.Queue[Input] = queue.Queue(maxsize=256)
     threads = [
         threading.Thread(
             target=_pump,
@@ -131,14 +114,14 @@ def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float
     try:
         while not stop.is_set():
             try:
-                kind, item = inputs.get(timeout=0.02)
+                item = inputs.get(timeout=0.02)
             except queue.Empty:
                 runtime.tick()
                 continue
             runtime.tick()
-            if tap is not None and kind in RECORDED:
+            if tap is not None and isinstance(item, RECORDED):
                 tap.add(item)
-            dispatch(runtime, kind, item)
+            feed(runtime, item)
     finally:
         stop.set()
         if tap is not None:

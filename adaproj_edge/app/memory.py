@@ -1,4 +1,4 @@
-"""Keep the resident set flat over a long run.
+"""Memory over a long run: keep the resident set flat, and read it.
 
 Every update allocates and frees arrays of a few MB (maps, frames). glibc serves
 those from the heap once its dynamic mmap threshold has grown, and a fragmented heap
@@ -12,6 +12,8 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import logging
+import os
+import resource
 
 log = logging.getLogger(__name__)
 
@@ -31,3 +33,13 @@ def pin_mmap_threshold(threshold: int = THRESHOLD) -> bool:
         return False
     log.debug("mmap threshold %d: %s", threshold, ok)
     return ok
+
+
+def rss_mb() -> float:
+    """Current resident set size (Linux ``/proc/self/statm``; else the peak), in MB."""
+    try:
+        with open("/proc/self/statm") as f:
+            pages = int(f.read().split()[1])
+        return pages * os.sysconf("SC_PAGE_SIZE") / 1e6
+    except OSError:
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3

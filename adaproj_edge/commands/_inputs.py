@@ -1,29 +1,60 @@
-"""Inputs shared by the warp commands: surfaces by name or file, content maps."""
+"""Inputs shared by the warp commands: surfaces by name or file, content maps, and the
+argparse types of their options.
+
+Importing this module is cheap (numpy and the rest load inside the functions), so a
+command's ``--help`` stays fast.
+"""
 
 from __future__ import annotations
 
 import argparse
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-from numpy.typing import NDArray
+from adaproj_edge.errors import InputError, SurfaceError
 
-from adaproj_edge.content.contentmap import ContentMap, combine_maps, content_map_for
-from adaproj_edge.content.mask import load_mask
-from adaproj_edge.content.model import SaliencyModel
-from adaproj_edge.errors import InputError
-from adaproj_edge.geometry.analytic import SURFACES, simulate_surface
-from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.warp.warpmap import Grid
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    from adaproj_edge.content.contentmap import ContentMap
+    from adaproj_edge.content.model import SaliencyModel
+    from adaproj_edge.geometry.surface import Surface
+    from adaproj_edge.warp.warpmap import Grid
 
 log = logging.getLogger(__name__)
 
 
 def load_surface(spec: str) -> Surface:
-    """A Surface file, or the name of a built-in analytic surface."""
-    if spec in SURFACES and not Path(spec).exists():
+    """A Surface file, or the name of a built-in analytic surface.
+
+    Parameters
+    ----------
+    spec : str
+        A path to a Surface ``.npz`` file, or a name from
+        :data:`adaproj_edge.geometry.analytic.SURFACES` (a file of that name wins).
+
+    Returns
+    -------
+    Surface
+        The surface, (H, W, 3) points in frame P.
+
+    Raises
+    ------
+    SurfaceError
+        Neither a readable Surface file nor a built-in name (the names are listed).
+    """
+    from adaproj_edge.geometry.analytic import SURFACES, simulate_surface
+    from adaproj_edge.geometry.surface import Surface
+
+    path = Path(spec)
+    if spec in SURFACES and not path.exists():
         return simulate_surface(spec)
+    if not path.exists() and not path.is_symlink():
+        raise SurfaceError(
+            f"surface {spec!r} is neither a file nor a built-in surface ({', '.join(SURFACES)})"
+        )
     return Surface.load(spec)
 
 
@@ -40,6 +71,10 @@ def content_map(
     [0, 1] at the content size, e.g. from :func:`load_mask`): the given map max the mask;
     without one, the saliency model max the mask; with ``saliency`` off, the mask alone
     (None without one: uniform)."""
+    import numpy as np
+
+    from adaproj_edge.content.contentmap import ContentMap, combine_maps, content_map_for
+
     h, w = image.shape[:2]
     if given is not None:
         return ContentMap(
@@ -57,6 +92,8 @@ def load_maps(
     image: NDArray[np.uint8], mask_path: Path | None, map_path: Path | None
 ) -> tuple[NDArray[np.float32] | None, NDArray[np.float32] | None]:
     """The user mask and a content-map file, read and fitted to the content."""
+    from adaproj_edge.content.mask import load_mask
+
     h, w = image.shape[:2]
     mask = None if mask_path is None else load_mask(mask_path, (w, h))
     given = None if map_path is None else load_mask(map_path, (w, h))
@@ -64,11 +101,21 @@ def load_maps(
 
 
 def grid_arg(text: str) -> Grid:
-    """argparse type for ``--grid 20x20``."""
+    """argparse type for ``--grid 20x20``: columns x rows of cells, enough of them for
+    the warp's mesh (checked here, before any work)."""
+    from adaproj_edge.warp.mesh import MIN_TRIANGLES
+    from adaproj_edge.warp.warpmap import Grid
+
     try:
-        return Grid.parse(text)
+        grid = Grid.parse(text)
     except InputError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
+    if 2 * grid.cols * grid.rows < MIN_TRIANGLES:  # two triangles per cell
+        raise argparse.ArgumentTypeError(
+            f"grid {grid} has {2 * grid.cols * grid.rows} triangles; the warp needs at "
+            f"least {MIN_TRIANGLES} (e.g. 2x2)"
+        )
+    return grid
 
 
 def vector_arg(text: str) -> tuple[float, float, float]:
@@ -78,3 +125,25 @@ def vector_arg(text: str) -> tuple[float, float, float]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected X,Y,Z in metres, got {text!r}") from None
     return x, y, z
+
+
+def surface_names(text: str) -> list[str]:
+    """Built-in surface names from a comma-separated list, all checked before any work.
+
+    Raises
+    ------
+    InputError
+        An empty list, or a name that is not built in (the built-in names are listed).
+    """
+    from adaproj_edge.geometry.analytic import SURFACES
+
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise InputError(f"no surface named; choose from {', '.join(SURFACES)}")
+    unknown = [n for n in names if n not in SURFACES]
+    if unknown:
+        raise InputError(
+            f"unknown surface{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}; "
+            f"built-in surfaces: {', '.join(SURFACES)}"
+        )
+    return names

@@ -8,36 +8,49 @@ import time
 from pathlib import Path
 from typing import Any
 
-from adaproj_edge.commands._inputs import content_map
-from adaproj_edge.commands.simulate import DEFAULT_VIEWER, simulate
-from adaproj_edge.content.builtin import poster, poster_mask
-from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
-from adaproj_edge.content.model import SaliencyModel
-from adaproj_edge.fileio import atomic_write_bytes, write_png
-from adaproj_edge.geometry.analytic import SURFACES, simulate_surface
-from adaproj_edge.render.sheet import stack
-from adaproj_edge.warp.engine import WarpSettings
-from adaproj_edge.warp.quality import measure
+from adaproj_edge.commands._inputs import content_map, surface_names
+from adaproj_edge.commands._outputs import check_output_dir
+from adaproj_edge.commands.simulate import simulate
 
 DEMO_SURFACES = ("corner", "cylinder-convex", "sphere-concave", "bowl")
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
+    from adaproj_edge.geometry.analytic import SURFACES
+
     p = sub.add_parser(
         "demo",
         help="correct the built-in poster for built-in surfaces and write the pictures",
+        description="Project the built-in poster onto built-in surfaces, plainly and "
+        "corrected (content mode, the saliency model max the poster's subject mask), and "
+        "show both as a viewer 0.8 m to the side sees them. Writes, in the folder, "
+        "demo.png (input | standard projector | adaproj, a row per surface), per surface "
+        "NAME.png, NAME-frame.png (the projector frame) and NAME-warp.npz, and "
+        "summary.json (the distortion of both, overall and over the subject).",
     )
     p.add_argument("--out", type=Path, default=Path("out"), help="folder (default: out/)")
     p.add_argument(
         "--surfaces",
         default=",".join(DEMO_SURFACES),
-        help=f"comma-separated, from: {', '.join(SURFACES)}",
+        help=f"comma-separated, from: {', '.join(SURFACES)} (default %(default)s)",
     )
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    names = [n.strip() for n in args.surfaces.split(",") if n.strip()]
+    names = surface_names(args.surfaces)
+    check_output_dir(args.out, "output folder")
+
+    from adaproj_edge.content.builtin import poster, poster_mask
+    from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
+    from adaproj_edge.content.model import SaliencyModel
+    from adaproj_edge.fileio import atomic_write_bytes, write_png
+    from adaproj_edge.geometry.analytic import simulate_surface
+    from adaproj_edge.render.sheet import stack
+    from adaproj_edge.render.viewer import DEFAULT_VIEWER
+    from adaproj_edge.warp.engine import WarpSettings
+    from adaproj_edge.warp.quality import measure
+
     image = poster()
     h, w = image.shape[:2]
     mask = poster_mask((w, h))

@@ -7,7 +7,16 @@ import json
 from pathlib import Path
 from typing import Any
 
-from adaproj_edge.commands.push import add_port, add_settings, settings_of
+from adaproj_edge.commands.push import (
+    ProgressBar,
+    add_port,
+    add_settings,
+    describe_active,
+    human_size,
+    link_options,
+    settings_of,
+)
+from adaproj_edge.errors import InputError
 from adaproj_edge.fileio import atomic_write_bytes
 
 
@@ -22,7 +31,15 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     add_port(a)
     a = acts.add_parser("status", help="the device's state, coverage, last warp, errors")
     add_port(a)
-    a = acts.add_parser("activate", help="show an item (with a mask and settings)")
+    a = acts.add_parser(
+        "activate",
+        help="show an item (with a mask and settings)",
+        description=(
+            "Show item NAME. Without --mask, an item that is already shown keeps its "
+            "mask (--no-mask drops it); another item is shown without a mask. Settings "
+            "not given take the device's defaults."
+        ),
+    )
     a.add_argument("name", help="item on the device")
     a.add_argument("--mask", help="mask item on the device")
     add_port(a)
@@ -36,36 +53,61 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.set_defaults(run=run)
 
 
+def item_lines(listed: Any) -> list[str]:
+    """The lines of ``adaproj device list`` for a list response."""
+    active = listed.active or {}
+    lines = []
+    for i in listed.items:
+        mark = (
+            "*"
+            if i["name"] == active.get("image")
+            else "m"
+            if i["name"] == active.get("mask")
+            else " "
+        )
+        dur = i.get("dur")
+        length = f"  {dur:.1f} s" if isinstance(dur, (int, float)) else ""
+        size = human_size(i["len"])
+        lines.append(f"{mark} {i['name']:40s} {size:>10s}  {i['w']}x{i['h']}{length}")
+    for q in listed.pending:
+        got = f"{human_size(q['off'])} of {human_size(q['len'])}"
+        lines.append(f"  {q['name']:40s} {got} received (pending: push it again to finish)")
+    lines.append(f"used {human_size(listed.used)} of {human_size(listed.quota)}")
+    if active:
+        lines.append(f"showing {describe_active(active)}  (* image, m mask)")
+    return lines
+
+
 def run(args: argparse.Namespace) -> int:
     from adaproj_edge.link import client
+    from adaproj_edge.link.host_requests import ListRead, StatusRead
+
+    options = link_options(args)
+    if getattr(args, "mask", None) is not None and args.no_mask:
+        raise InputError("--mask and --no-mask contradict each other")
+    notes = ProgressBar(args.action)
 
     async def go() -> None:
-        async with client.connect(args.port) as c:
+        async with client.connect(args.port, options["timeout_s"]) as c:
+            kw = {**options, "notify": notes.note}
             if args.action == "list":
-                r = await client.call(c, client.ListRead())
-                for i in r.items:
-                    mark = "*" if r.active and i["name"] == r.active.get("image") else " "
-                    print(f"{mark} {i['name']:40s} {i['len']:>10d} B  {i['w']}x{i['h']}")
-                for q in r.pending:
-                    print(f"  {q['name']:40s} {q['off']:>10d}/{q['len']} B received (pending)")
-                print(f"used {r.used} of {r.quota} bytes")
+                print("\n".join(item_lines(await client.call(c, ListRead(), **kw))))
             elif args.action == "status":
-                r = await client.call(c, client.StatusRead())
+                r = await client.call(c, StatusRead(), **kw)
                 doc = {"device": r.device, "store": r.store, "link": r.link}
                 print(json.dumps(doc, indent=2, default=str))
             elif args.action == "activate":
-                req = client.ActivateWrite(
-                    image=args.name, mask=args.mask, settings=settings_of(args)
+                active = await client.activate(
+                    c, args.name, args.mask, settings_of(args), keep_mask=not args.no_mask, **kw
                 )
-                r = await client.call(c, req)
-                print(f"showing {json.dumps(r.active)}")
+                print(f"showing {describe_active(active)}")
             elif args.action == "delete":
-                await client.call(c, client.DeleteWrite(name=args.name))
+                await client.delete(c, args.name, **kw)
                 print(f"deleted {args.name}")
             else:
-                png = await client.download_screenshot(c)
+                png = await client.download_screenshot(c, **kw)
                 atomic_write_bytes(args.out, png)
-                print(f"wrote {args.out} ({len(png)} bytes)")
+                print(f"wrote {args.out} ({human_size(len(png))})")
 
     client.run(go())
     return 0

@@ -7,13 +7,7 @@ import logging
 import signal
 from typing import Any
 
-from adaproj_edge.hal.board import Board
-from adaproj_edge.hal.button import EvdevButton
-from adaproj_edge.hal.clock import MonotonicClock
-from adaproj_edge.hal.depth import OakDepthCamera
-from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
-from adaproj_edge.session.recorder import Recorder
-from adaproj_edge.session.writer import SessionWriter
+from adaproj_edge.commands._outputs import check_output_file
 
 log = logging.getLogger(__name__)
 
@@ -33,7 +27,16 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from adaproj_edge.hal.board import Board
+    from adaproj_edge.hal.button import EvdevButton
+    from adaproj_edge.hal.clock import MonotonicClock
+    from adaproj_edge.hal.depth import OakDepthCamera
+    from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
+    from adaproj_edge.session.recorder import Recorder
+    from adaproj_edge.session.writer import SessionWriter
+
     board = Board.load(args.board)
+    check_output_file(args.out, "session file")
     clock = MonotonicClock()
     calibration = board.calibration()
     # the quick checks first: a missing IMU or button is reported before the OAK-D boots

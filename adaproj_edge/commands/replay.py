@@ -5,11 +5,12 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import sys
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
-from adaproj_edge.app.replay import ReplayOptions, replay_session
-from adaproj_edge.app.runtime import AppSettings
+from adaproj_edge.commands._outputs import check_output_dir
 from adaproj_edge.resources import default_session
 
 log = logging.getLogger(__name__)
@@ -41,6 +42,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.out is not None:
+        check_output_dir(args.out, "output folder")
+
+    from adaproj_edge.app.replay import ReplayOptions, replay_session
+    from adaproj_edge.app.settings import AppSettings
+
     settings = replace(AppSettings(), caching=not args.no_cache, warm_start=not args.no_warm_start)
     options = ReplayOptions(settings, all_frames=args.all_frames, score=not args.no_score)
     s = replay_session(args.session, args.out, options)
@@ -62,8 +69,12 @@ def run(args: argparse.Namespace) -> int:
     for d in s["distortion"]:
         print(
             f"  t={d['t_s']:.2f}s angle error shown {d['shown_angle_error']:.4f} "
-            f"(warp from the true surface {d['truth_angle_error']:.4f})"
+            f"(warp from the true surface {d['truth_angle_error']:.4f}, "
+            f"plain projector {d['plain_angle_error']:.4f})"
         )
+    damage = s["session_file"]["damage"]
+    if damage is not None:
+        print(f"adaproj replay: warning: {Path(args.session).name}: {damage}", file=sys.stderr)
     if args.out:
         print(f"wrote {args.out}/summary.json, {args.out}/contact_sheet.png, {args.out}/frames/")
     else:

@@ -4,10 +4,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
-
-import numpy as np
-from numpy.typing import NDArray
+from typing import TYPE_CHECKING, Any
 
 from adaproj_edge.commands._inputs import (
     content_map,
@@ -16,50 +13,51 @@ from adaproj_edge.commands._inputs import (
     load_surface,
     vector_arg,
 )
-from adaproj_edge.content.builtin import poster, poster_mask
-from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD, ContentMap
-from adaproj_edge.fileio import read_image, write_png
-from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.render.project import Projection, project
-from adaproj_edge.render.sheet import row
-from adaproj_edge.render.viewer import Viewer, view
-from adaproj_edge.warp.engine import MODES, WarpSettings
-from adaproj_edge.warp.warpmap import Grid
+from adaproj_edge.commands._outputs import check_image_file
 
-DEFAULT_VIEWER = (0.8, -0.15, 0.1)
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    from adaproj_edge.content.contentmap import ContentMap
+    from adaproj_edge.geometry.surface import Surface
+    from adaproj_edge.render.project import Projection
+    from adaproj_edge.warp.engine import WarpSettings
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
+    from adaproj_edge.render.viewer import DEFAULT_VIEWER
+    from adaproj_edge.warp.engine import MODES
+    from adaproj_edge.warp.warpmap import Grid
+
     p = sub.add_parser(
         "simulate",
         help="picture of the input, the plain and the corrected projection as a viewer sees them",
+        description="Project an image (default: the built-in poster) onto a surface twice, "
+        "plainly and corrected, and write one picture: the input, then both projections "
+        "as a viewer at --viewer sees them (the standard projector's distortion next to "
+        "adaproj's correction).",
     )
     p.add_argument(
-        "--surface", required=True, help="Surface file (.npz) or a built-in surface name"
+        "--surface",
+        required=True,
+        help="Surface file (.npz) or a built-in surface name (see `adaproj surface --help`)",
     )
     p.add_argument("--image", type=Path, help="the content (default: the built-in poster)")
     p.add_argument("--mask", type=Path, help="user mask: PNG, white = important")
     p.add_argument("--content-map", type=Path, help="content map PNG (default: saliency)")
     p.add_argument("--mode", choices=MODES, default="content", help="the corrected projection")
-    p.add_argument("--grid", type=grid_arg, default=Grid())
+    p.add_argument(
+        "--grid", type=grid_arg, default=Grid(), help="cells, e.g. 20x20 (default %(default)s)"
+    )
     p.add_argument(
         "--viewer",
         type=vector_arg,
         default=DEFAULT_VIEWER,
         help="viewer position X,Y,Z in metres, projector frame (default %(default)s)",
     )
-    p.add_argument("--out", type=Path, required=True, help="picture to write (PNG)")
+    p.add_argument("--out", type=Path, required=True, help="picture to write (.png or .jpg)")
     p.set_defaults(run=run)
-
-
-def viewer_for(surface: Surface, eye: tuple[float, float, float]) -> Viewer:
-    """A viewer at ``eye`` looking at the surface point at the frame's centre."""
-    p = surface.projector
-    centre = surface.points_at(np.array([[(p.width - 1) / 2, (p.height - 1) / 2]]))[0]
-    if not np.all(np.isfinite(centre)):
-        valid = surface.points[surface.valid]
-        centre = valid.mean(axis=0) if valid.size else np.array([0.0, 0.0, 1.5])
-    return Viewer(eye, (float(centre[0]), float(centre[1]), float(centre[2])))
 
 
 def simulate(
@@ -70,6 +68,11 @@ def simulate(
     eye: tuple[float, float, float],
 ) -> tuple[NDArray[np.uint8], Projection, Projection]:
     """The picture input | standard | corrected, and the two projections."""
+    from adaproj_edge.render.project import project
+    from adaproj_edge.render.sheet import row
+    from adaproj_edge.render.viewer import view, viewer_for
+    from adaproj_edge.warp.engine import WarpSettings
+
     plain = project(surface, image, None, WarpSettings(mode="standard", grid=settings.grid))
     corrected = project(surface, image, cmap, settings)
     viewer = viewer_for(surface, eye)
@@ -81,6 +84,13 @@ def simulate(
 
 
 def run(args: argparse.Namespace) -> int:
+    check_image_file(args.out, "picture")
+
+    from adaproj_edge.content.builtin import poster, poster_mask
+    from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
+    from adaproj_edge.fileio import read_image, write_image
+    from adaproj_edge.warp.engine import WarpSettings
+
     surface = load_surface(args.surface)
     image = poster() if args.image is None else read_image(args.image)
     mask, given = load_maps(image, args.mask, args.content_map)
@@ -89,6 +99,6 @@ def run(args: argparse.Namespace) -> int:
     cmap = content_map(image, mask, given, DEFAULT_THRESHOLD, saliency=args.mode == "content")
     settings = WarpSettings(mode=args.mode, grid=args.grid)
     picture, _, _ = simulate(surface, image, cmap, settings, args.viewer)
-    write_png(args.out, picture)
+    write_image(args.out, picture)
     print(f"wrote {args.out}")
     return 0

@@ -6,8 +6,7 @@ import argparse
 import logging
 from typing import Any
 
-from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session
+from adaproj_edge.commands._outputs import check_output_file
 
 log = logging.getLogger(__name__)
 
@@ -31,6 +30,11 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_output_file(args.out, "session file")
+
+    from adaproj_edge.geometry.calibration import Calibration
+    from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session
+
     cal = Calibration.load(args.calibration) if args.calibration else Calibration.default()
     settings = SimulationSettings(seconds=args.seconds, depth_fps=args.depth_fps, seed=args.seed)
     n = simulate_session(Scene.load(args.surface), args.out, cal, settings)

@@ -4,19 +4,19 @@ from __future__ import annotations
 
 import argparse
 import json
+import time
 from pathlib import Path
 from typing import Any
 
 from adaproj_edge.commands._inputs import content_map, grid_arg, load_maps, load_surface
-from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
-from adaproj_edge.fileio import read_image, write_png
-from adaproj_edge.render.project import project
-from adaproj_edge.warp.engine import ALTERNATIONS, MODES, WarpSettings
-from adaproj_edge.warp.quality import measure
-from adaproj_edge.warp.warpmap import Grid
+from adaproj_edge.commands._outputs import check_image_file, check_output_file
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
+    from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
+    from adaproj_edge.warp.engine import ALTERNATIONS, MODES
+    from adaproj_edge.warp.warpmap import Grid
+
     p = sub.add_parser(
         "warp",
         help="compute the pre-warp of an image for a surface",
@@ -26,7 +26,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         ),
     )
     p.add_argument(
-        "--surface", required=True, help="Surface file (.npz) or a built-in surface name"
+        "--surface",
+        required=True,
+        help="Surface file (.npz) or a built-in surface name (see `adaproj surface --help`)",
     )
     p.add_argument("--image", type=Path, required=True, help="the content (PNG or JPEG)")
     p.add_argument("--mask", type=Path, help="user mask: PNG, white = important")
@@ -36,7 +38,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         help="content map PNG (white = salient); default: the saliency model, max the mask",
     )
     p.add_argument("--mode", choices=MODES, default="content")
-    p.add_argument("--grid", type=grid_arg, default=Grid(), help="cells, e.g. 20x20")
+    p.add_argument(
+        "--grid", type=grid_arg, default=Grid(), help="cells, e.g. 20x20 (default %(default)s)"
+    )
     p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="T of eq. 5")
     p.add_argument(
         "--alternation",
@@ -45,11 +49,21 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         help="content-aware step: ours (default) or the paper's as written (for comparison)",
     )
     p.add_argument("--out", type=Path, required=True, help="warp file to write (.npz)")
-    p.add_argument("--frame", type=Path, help="also write the projector frame (PNG)")
+    p.add_argument("--frame", type=Path, help="also write the projector frame (.png or .jpg)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    check_output_file(args.out, "warp file")
+    if args.frame is not None:
+        check_image_file(args.frame, "frame")
+
+    from adaproj_edge.fileio import read_image, write_image
+    from adaproj_edge.render.project import show
+    from adaproj_edge.warp.engine import WarpSettings
+    from adaproj_edge.warp.planner import compute_warp
+    from adaproj_edge.warp.quality import measure
+
     settings = WarpSettings(
         mode=args.mode, grid=args.grid, threshold=args.threshold, alternation=args.alternation
     )
@@ -57,10 +71,14 @@ def run(args: argparse.Namespace) -> int:
     image = read_image(args.image)
     mask, given = load_maps(image, args.mask, args.content_map)
     cmap = content_map(image, mask, given, args.threshold, saliency=args.mode == "content")
-    result = project(surface, image, cmap, settings)
+    h, w = image.shape[:2]
+    t0 = time.perf_counter()
+    warp = compute_warp(surface, (w, h), cmap, settings)
+    seconds = time.perf_counter() - t0
+    result = show(surface, image, warp)
     result.warp.save(args.out)
     if args.frame is not None:
-        write_png(args.frame, result.frame)
+        write_image(args.frame, result.frame)
     overall, salient = measure(
         result.map_xy, surface, None if cmap is None else cmap.full_size() >= cmap.threshold
     )
@@ -68,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         "mode": settings.mode,
         "grid": str(settings.grid),
         "iterations": result.warp.meta["iterations"],
-        "time_s": round(result.warp.meta.get("timings", {}).get("total", 0.0), 4),
+        "time_s": round(seconds, 4),
         "distortion": overall.as_dict(),
     }
     if salient is not None:

@@ -1,9 +1,10 @@
 """Content maps per content item, recomputing only what changed.
 
-Each item (a name in the content store) keeps its coarse saliency, keyed by a digest of
-the image, and its coarse user mask, keyed by a digest of the mask bytes. A new image
-reruns the model (and re-fits the mask to the new size); a new mask only decodes the
-mask; the max and the threshold are always redone (they are cheap).
+Each item (a name in the content store) keeps its coarse saliency and its faces, keyed
+by a digest of the image, and its coarse user mask, keyed by a digest of the mask bytes.
+A new image reruns the model and the face detector (and re-fits the mask to the new
+size); a new mask only decodes the mask; the max and the threshold are always redone
+(they are cheap).
 """
 
 from __future__ import annotations
@@ -15,15 +16,17 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import (
     DEFAULT_GRID,
     DEFAULT_THRESHOLD,
     ContentMap,
     Map,
     coarse_size,
-    combine_maps,
+    compose,
     resize_map,
 )
+from adaproj_edge.content.faces import NO_FACES, FaceDetector
 from adaproj_edge.content.mask import decode_mask
 from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.errors import InputError, MaskError
@@ -46,6 +49,7 @@ class _Item:
     image_digest: str
     content_size: tuple[int, int]
     saliency: Map
+    faces: FloatArray
     mask_digest: str | None = None
     mask_png: bytes | None = None
     mask: Map | None = None
@@ -56,6 +60,7 @@ class CacheStats:
     """How often each expensive step ran (for tests and logs)."""
 
     saliency_runs: int = 0
+    face_runs: int = 0
     mask_decodes: int = 0
 
 
@@ -73,17 +78,20 @@ class ContentMapper:
         The warp grid the maps are sized for.
     max_items : int
         Least recently used items beyond this many are forgotten.
+    detector : FaceDetector, optional
+        Finds the faces; None leaves faces out (C = max(saliency, mask)).
     """
 
     model: SaliencyModel
     threshold: float = DEFAULT_THRESHOLD
     grid: tuple[int, int] = DEFAULT_GRID
     max_items: int = 8
+    detector: FaceDetector | None = None
     stats: CacheStats = field(default_factory=CacheStats, init=False)
     _items: OrderedDict[str, _Item] = field(default_factory=OrderedDict, init=False, repr=False)
 
     def set_content(self, name: str, image_bgr: NDArray[np.uint8]) -> None:
-        """Give item ``name`` its image; the model runs only if the image changed."""
+        """Give item ``name`` its image; model and detector run only if it changed."""
         d = digest(image_bgr)
         item = self._items.get(name)
         if item is not None and item.image_digest == d:
@@ -93,7 +101,11 @@ class ContentMapper:
         size = coarse_size((w, h), self.grid)
         self.stats.saliency_runs += 1
         sal = resize_map(self.model.predict(image_bgr), size, area=False)
-        new = _Item(d, (w, h), sal)
+        faces = NO_FACES.copy()
+        if self.detector is not None:
+            self.stats.face_runs += 1
+            faces = self.detector.detect(image_bgr)
+        new = _Item(d, (w, h), sal, faces)
         if item is not None and item.mask_png is not None:
             try:
                 self._fit_mask(new, item.mask_png, item.mask_digest)
@@ -123,11 +135,35 @@ class ContentMapper:
         if d != item.mask_digest:
             self._fit_mask(item, png, d)
 
+    def set_mask_values(self, name: str, mask: Map | None) -> None:
+        """Give item ``name`` a user mask already decoded at the content's size (h, w)
+        float32 in [0, 1] (:func:`~adaproj_edge.content.mask.load_mask`), or remove
+        it with None.
+
+        Raises
+        ------
+        InputError
+            No content was set for ``name``, or the mask is not at its size.
+        """
+        item = self._item(name)
+        if mask is None:
+            item.mask_digest, item.mask_png, item.mask = None, None, None
+            return
+        w, h = item.content_size
+        if mask.shape != (h, w):
+            raise InputError(f"mask of shape {mask.shape} does not match the content {w}x{h}")
+        d = digest(mask)
+        if d != item.mask_digest:
+            self.stats.mask_decodes += 1
+            size = coarse_size(item.content_size, self.grid)
+            item.mask = resize_map(mask, size, area=True)
+            item.mask_png, item.mask_digest = None, d
+
     def content_map(self, name: str) -> ContentMap:
         """The current content map of item ``name``."""
         item = self._item(name)
-        maps = [item.saliency] if item.mask is None else [item.saliency, item.mask]
-        return ContentMap(combine_maps(maps), item.content_size, self.threshold)
+        values = compose(item.saliency, item.faces, item.mask, item.content_size)
+        return ContentMap(values, item.content_size, self.threshold, item.faces)
 
     def forget(self, name: str) -> None:
         """Drop item ``name`` (no error if unknown)."""

@@ -1,4 +1,5 @@
-"""The content map C: pixel-wise max of saliency and the user mask (paper §3.2).
+"""The content map C: pixel-wise max of saliency, faces and the user mask (paper §3.2,
+extended with faces: :mod:`adaproj_edge.content.faces`).
 
 C is kept at a coarse resolution that covers the whole content: the warp only samples it
 at its grid vertices (20 × 20 cells by default), so :func:`coarse_size` gives a few
@@ -7,13 +8,15 @@ samples per cell and nothing more. The warp's weight at a vertex is ``C >= T`` (
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 import scipy.ndimage
 from numpy.typing import NDArray
 
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.content.faces import NO_FACES, FaceDetector, face_map
 from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.errors import InputError
 
@@ -64,11 +67,15 @@ class ContentMap:
         Size of the content in pixels.
     threshold : float
         T of eq. 5.
+    faces : (n, 4) float64
+        The faces that went into ``values`` (``x, y, w, h``, content pixels); empty
+        when none were found or none were looked for.
     """
 
     values: Map
     content_size: tuple[int, int]
     threshold: float = DEFAULT_THRESHOLD
+    faces: FloatArray = field(default_factory=NO_FACES.copy)
 
     def sample(self, xy: NDArray[np.floating]) -> NDArray[np.float32]:
         """Bilinear C at content pixel coordinates ``xy`` (n, 2); 0 outside the content.
@@ -128,6 +135,39 @@ def combine_maps(maps: list[NDArray[np.floating]]) -> Map:
     return np.clip(np.nan_to_num(out, nan=0.0), 0.0, 1.0).astype(np.float32)
 
 
+def compose(
+    saliency: Map,
+    boxes: FloatArray,
+    mask: Map | None,
+    content_size: tuple[int, int],
+) -> Map:
+    """C = max(saliency, faces, mask) on the grid of ``saliency``.
+
+    Parameters
+    ----------
+    saliency : (h', w') float32 in [0, 1]
+        Saliency already at the map size.
+    boxes : (n, 4) float
+        Faces (``x, y, w, h``, content pixels); none leaves C exactly
+        ``max(saliency, mask)``.
+    mask : (h', w') float32 in [0, 1], optional
+        The user mask already at the map size.
+    content_size : (w, h)
+
+    Returns
+    -------
+    (h', w') float32 in [0, 1]
+    """
+    mh, mw = saliency.shape
+    maps: list[NDArray[np.floating]] = [saliency]
+    faces = face_map(boxes, content_size, (mw, mh))
+    if faces is not None:
+        maps.append(faces)
+    if mask is not None:
+        maps.append(mask)
+    return combine_maps(maps)
+
+
 def content_map_for(
     image_bgr: NDArray[np.uint8],
     mask: NDArray[np.floating] | None = None,
@@ -135,8 +175,10 @@ def content_map_for(
     *,
     threshold: float = DEFAULT_THRESHOLD,
     grid: tuple[int, int] = DEFAULT_GRID,
+    faces: bool = True,
+    detector: FaceDetector | None = None,
 ) -> ContentMap:
-    """The content map of one image: saliency by ``model``, max with ``mask``.
+    """The content map of one image: max of saliency by ``model``, faces and ``mask``.
 
     Parameters
     ----------
@@ -151,15 +193,20 @@ def content_map_for(
         T of eq. 5.
     grid : (rows, cols)
         The warp grid the map is sized for (:func:`coarse_size`).
+    faces : bool
+        Look for faces (off: C = max(saliency, mask), as before faces were added).
+    detector : FaceDetector, optional
+        Defaults to a new detector with the shipped cascade; pass one to reuse it.
 
     Returns
     -------
     ContentMap
+        With the faces found in ``faces`` (content pixels).
     """
     h, w = image_bgr.shape[:2]
     size = coarse_size((w, h), grid)
     model = model or SaliencyModel()
-    maps = [resize_map(model.predict(image_bgr), size, area=False)]
-    if mask is not None:
-        maps.append(resize_map(mask, size, area=True))
-    return ContentMap(combine_maps(maps), (w, h), threshold)
+    saliency = resize_map(model.predict(image_bgr), size, area=False)
+    boxes = (detector or FaceDetector()).detect(image_bgr) if faces else NO_FACES.copy()
+    small_mask = None if mask is None else resize_map(mask, size, area=True)
+    return ContentMap(compose(saliency, boxes, small_mask, (w, h)), (w, h), threshold, boxes)

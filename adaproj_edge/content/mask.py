@@ -59,8 +59,11 @@ def decode_mask(data: bytes, content_size: tuple[int, int], what: str = "mask") 
     return mask_from_image(gray, content_size, what)
 
 
-def load_mask(path: str | os.PathLike[str], content_size: tuple[int, int]) -> Mask:
-    """Read a mask file and bring it to the content's size.
+def load_mask(
+    path: str | os.PathLike[str], content_size: tuple[int, int], what: str | None = None
+) -> Mask:
+    """Read a mask file and bring it to the content's size (``what`` names it in
+    messages; default: its path).
 
     Raises
     ------
@@ -71,4 +74,4 @@ def load_mask(path: str | os.PathLike[str], content_size: tuple[int, int]) -> Ma
         gray = read_image(path, gray=True)
     except ImageError as e:
         raise MaskError(f"mask rejected: {e}") from None
-    return mask_from_image(gray, content_size, str(path))
+    return mask_from_image(gray, content_size, str(path) if what is None else what)

@@ -7,6 +7,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.content.faces import FACE_DROP, FACE_SCALE
+
+FACE_COLOUR = (255, 0, 255)
+"""BGR colour of the faces' ellipses in the overlay (magenta)."""
 
 
 def to_gray(values: NDArray[np.floating]) -> NDArray[np.uint8]:
@@ -18,7 +22,8 @@ def to_gray(values: NDArray[np.floating]) -> NDArray[np.uint8]:
 def overlay(
     image_bgr: NDArray[np.uint8], cmap: ContentMap, alpha: float = 0.5
 ) -> NDArray[np.uint8]:
-    """The image with C in false colour over it and the salient region (C >= T) outlined.
+    """The image with C in false colour over it, the salient region (C >= T) outlined
+    in white and each detected face (``cmap.faces``) as a magenta ellipse.
 
     Parameters
     ----------
@@ -40,4 +45,8 @@ def overlay(
     contours, _ = cv2.findContours(salient, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     thickness = max(1, round(max(img.shape[:2]) / 300))
     cv2.drawContours(out, contours, -1, (255, 255, 255), thickness)
+    for x, y, bw, bh in np.asarray(cmap.faces, np.float64).reshape(-1, 4):
+        centre = (round(x + bw / 2), round(y + bh / 2 + FACE_DROP * bh))
+        axes = (max(1, round(FACE_SCALE[0] * bw)), max(1, round(FACE_SCALE[1] * bh)))
+        cv2.ellipse(out, centre, axes, 0, 0, 360, FACE_COLOUR, thickness, cv2.LINE_AA)
     return np.asarray(out, dtype=np.uint8)

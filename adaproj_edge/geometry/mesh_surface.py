@@ -1,18 +1,22 @@
-"""Triangle meshes as surfaces: OBJ/PLY reading, ray casting and depth rasterising.
+"""Triangle meshes as surfaces: OBJ/PLY reading and ray casting.
 
 A :class:`MeshSurface` satisfies the ``AnalyticSurface`` protocol of
 :mod:`adaproj_edge.geometry.analytic` (``intersect(origins, dirs)``), so a mesh can
-stand wherever a built-in surface can; :func:`rasterize_depth` renders a whole depth
-image from a pinhole camera much faster than casting each ray.
+stand wherever a built-in surface can; rays are cast through a BVH kept with the mesh
+(a whole depth image is one call).
 Mesh coordinates are metres in the frame the caller uses (the session simulator:
 the projector frame at the start of the session).
 """
 
 from __future__ import annotations
 
+import functools
+import logging
 import os
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +25,9 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.fileio import read_input
+from adaproj_edge.geometry.ray_triangle import intersect_brute_force
+
+log = logging.getLogger(__name__)
 
 MAX_TRIANGLES = 2_000_000
 
@@ -49,79 +56,47 @@ class MeshSurface:
         object.__setattr__(self, "faces", f)
 
     def intersect(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
-        """Ray parameter t (...,) of the nearest hit with t > 0, NaN where none.
+        """Ray parameter t of the nearest hit with t > 0, NaN where none.
 
-        Moller-Trumbore against every triangle, a few rays at a time: fine for a
-        few thousand rays (a warp grid), use :func:`rasterize_depth` for images.
+        Rays are cast through a BVH built on first use and kept with the mesh
+        (:class:`~adaproj_edge.geometry.mesh_bvh.MeshBvh`, the ``sim`` extra); without
+        it, every ray is tested against every triangle (the same results, slowly).
+
+        Parameters
+        ----------
+        origins : (..., 3) float64
+            Ray origins, broadcast against ``dirs``.
+        dirs : (..., 3) float64
+            Ray directions (any length: t is in multiples of it).
+
+        Returns
+        -------
+        (...,) float64
+            t of the nearest hit: the point is ``origin + t * dir``.
         """
+        dirs = np.asarray(dirs, dtype=np.float64)
         shape = dirs.shape[:-1]
-        o = np.broadcast_to(origins, dirs.shape).reshape(-1, 3)
-        d = dirs.reshape(-1, 3)
-        tri = self.vertices[self.faces]  # (M, 3, 3)
-        v0 = tri[:, 0]
-        e1 = tri[:, 1] - v0
-        e2 = tri[:, 2] - v0
-        out = np.full(len(d), np.nan)
-        chunk = max(1, 500_000 // len(tri))
-        for s in range(0, len(d), chunk):
-            oo, dd = o[s : s + chunk, None, :], d[s : s + chunk, None, :]
-            p = np.cross(dd, e2)
-            det = np.sum(e1 * p, axis=-1)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                inv = 1.0 / det
-                tv = oo - v0
-                u = np.sum(tv * p, axis=-1) * inv
-                q = np.cross(tv, e1)
-                v = np.sum(dd * q, axis=-1) * inv
-                t = np.sum(e2 * q, axis=-1) * inv
-                ok = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-9)
-            t = np.where(ok, t, np.inf)
-            best = t.min(axis=1)
-            out[s : s + chunk] = np.where(np.isfinite(best), best, np.nan)
-        return out.reshape(shape)
+        o = np.ascontiguousarray(np.broadcast_to(origins, dirs.shape), np.float64).reshape(-1, 3)
+        return self._cast(o, dirs.reshape(-1, 3)).reshape(shape)
 
+    @cached_property
+    def _cast(self) -> Callable[[FloatArray, FloatArray], FloatArray]:
+        """The caster of this mesh: made once, on the first cast."""
+        try:
+            from adaproj_edge.geometry.mesh_bvh import MeshBvh
 
-def rasterize_depth(
-    mesh: MeshSurface, K: FloatArray, width: int, height: int, R_W_C: FloatArray, t_W_C: FloatArray
-) -> FloatArray:
-    """Z-buffer depth image (height, width) of ``mesh`` from a pinhole camera; NaN = none.
-
-    The camera has intrinsics ``K`` (3, 3) and pose ``R_W_C`` (3, 3), ``t_W_C`` (3,)
-    (camera -> mesh frame). Depth is exact for planar triangles: 1/z is affine in
-    image coordinates, so it is interpolated as such.
-    """
-    pts = (mesh.vertices - t_W_C) @ R_W_C  # mesh frame -> camera frame
-    z = pts[:, 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        uv = (pts @ K.T)[:, :2] / z[:, None]
-    zbuf = np.full((height, width), np.inf)
-    near = 1e-3
-    for f in mesh.faces:
-        if np.any(z[f] <= near):
-            continue  # triangles crossing the camera plane: not seen by a real camera
-        p = uv[f]
-        x0, y0 = np.maximum(np.floor(p.min(axis=0)).astype(int), 0)
-        x1 = min(int(np.ceil(p[:, 0].max())), width - 1)
-        y1 = min(int(np.ceil(p[:, 1].max())), height - 1)
-        if x0 > x1 or y0 > y1:
-            continue
-        xs, ys = np.meshgrid(np.arange(x0, x1 + 1), np.arange(y0, y1 + 1))
-        (a, b), (c, d) = p[1] - p[0], p[2] - p[0]
-        den = a * d - b * c
-        if abs(den) < 1e-12:
-            continue
-        px, py = xs - p[0, 0], ys - p[0, 1]
-        l1 = (px * d - py * c) / den
-        l2 = (a * py - b * px) / den
-        inside = (l1 >= 0) & (l2 >= 0) & (l1 + l2 <= 1)
-        if not inside.any():
-            continue
-        iz = (1 - l1 - l2) / z[f[0]] + l1 / z[f[1]] + l2 / z[f[2]]
-        depth = np.where(inside, 1.0 / iz, np.inf)
-        win = zbuf[y0 : y1 + 1, x0 : x1 + 1]
-        np.minimum(win, depth, out=win)
-    zbuf[~np.isfinite(zbuf)] = np.nan
-    return zbuf
+            return MeshBvh(self.vertices, self.faces).cast
+        except Exception as e:  # no warp-lang, or it cannot run here: cast by brute force
+            log.warning(
+                "mesh %s: no BVH ray caster (%s: %s); testing every ray against all %d "
+                "triangles instead, which is slow for large meshes: install the 'sim' extra "
+                "(pip install 'adaproj-edge[sim]')",
+                self.name,
+                type(e).__name__,
+                e,
+                len(self.faces),
+            )
+            return functools.partial(intersect_brute_force, self.vertices, self.faces)
 
 
 # ---------------------------------------------------------------------------- files

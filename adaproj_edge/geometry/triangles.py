@@ -98,3 +98,27 @@ def conformal_coords(p: FloatArray) -> FloatArray:
 def rot90_2d(v: FloatArray) -> FloatArray:
     """The 2D rotation matching :func:`conformal_coords` in content space (y down)."""
     return np.stack([v[..., 1], -v[..., 0]], axis=-1)
+
+
+def grid_cells(positions: FloatArray, n: int) -> tuple[IntArray, FloatArray]:
+    """The interval of increasing ``positions`` that each of 0..n-1 falls in.
+
+    Parameters
+    ----------
+    positions : (m,) float array, m >= 2
+        Increasing coordinates of grid lines (pixel columns, vertex indices, ...).
+    n : int
+        The coordinates 0, 1, ..., n - 1 to place.
+
+    Returns
+    -------
+    cell : (n,) int array
+        Index ``c`` of the interval ``[positions[c], positions[c + 1]]`` (clamped to the
+        first and last interval outside the range).
+    fraction : (n,) float array
+        Where in it: ``(x - positions[c]) / (positions[c + 1] - positions[c])``.
+    """
+    x = np.arange(n, dtype=np.float64)
+    c = np.clip(np.searchsorted(positions, x, side="right") - 1, 0, positions.size - 2)
+    f = (x - positions[c]) / (positions[c + 1] - positions[c])
+    return c, f

@@ -70,7 +70,8 @@ class Board:
         try:
             data = tomllib.loads(p.read_text())
         except FileNotFoundError:
-            raise InputError(f"board file not found: {p}") from None
+            known = ", ".join(sorted(b.stem for b in boards_dir().glob("*.toml")))
+            raise InputError(f"board file not found: {p} (boards: {known})") from None
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
             raise InputError(f"cannot read board file {p}: {e}") from None
         with field_errors(f"board file {p}"):

@@ -24,7 +24,7 @@ from typing import Protocol
 
 from adaproj_edge.errors import InputError
 from adaproj_edge.hal.clock import Clock, VirtualClock
-from adaproj_edge.hal.errors import device_error
+from adaproj_edge.hal.oserrors import device_error
 from adaproj_edge.hal.recorded import ReplayStream
 
 EV_SYN = 0x00

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.errors import DeviceError, InputError
-from adaproj_edge.hal.errors import device_error
+from adaproj_edge.hal.oserrors import device_error
 
 Frame = NDArray[np.uint8]
 _CHECK = "that the projector is connected and the framebuffer driver is loaded"

@@ -20,8 +20,8 @@ from typing import Protocol
 
 from adaproj_edge.errors import DeviceError, DeviceNotFoundError, InputError
 from adaproj_edge.hal.clock import Clock
-from adaproj_edge.hal.errors import device_error
 from adaproj_edge.hal.imu import ImuSample
+from adaproj_edge.hal.oserrors import device_error
 
 # --- registers (DS12814 section 8) --------------------------------------------------
 WHO_AM_I = 0x0F

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from adaproj_edge.errors import DeviceError
-from adaproj_edge.hal.errors import device_error
+from adaproj_edge.hal.oserrors import device_error
 
 DEVICE_PORT = "/dev/ttyGS0"
 """The gadget's ACM port on the device (see ``hw/gadget/``)."""

@@ -1,8 +1,8 @@
 """What the SMP server needs from the running device, and a stand-in for bring-up.
 
 The device runtime (``app/``) implements :class:`DeviceRuntime`; ``adaproj link`` on
-its own uses :class:`StandaloneDevice`, which shows the active image letterboxed on
-the projector frame, without any warp.
+its own uses :class:`StandaloneDevice`, which shows the active image (a clip: its first
+frame) letterboxed on the projector frame, without any warp.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD
+from adaproj_edge.content.intake import read_content
 from adaproj_edge.errors import AdaprojError, ContentError, ImageError
-from adaproj_edge.fileio import read_image
 from adaproj_edge.warp.engine import MODES
 
 log = logging.getLogger(__name__)
@@ -117,15 +117,10 @@ class StandaloneDevice:
         }
 
     def activate(self, content: Content) -> None:
+        """Show ``content`` (checked as the runtime checks it: the image decodes, a mask
+        has its aspect ratio)."""
         try:
-            image = read_image(content.image)
-            if content.mask is not None:
-                mask = read_image(content.mask, gray=True)
-                if mask.shape[:2] != image.shape[:2]:
-                    raise ImageError(
-                        f"mask {content.mask.name} is {mask.shape[1]}x{mask.shape[0]}, "
-                        f"image {content.image.name} is {image.shape[1]}x{image.shape[0]}"
-                    )
+            image = read_content(content.image, content.mask).image
         except AdaprojError as e:
             self._errors.append(str(e))
             raise

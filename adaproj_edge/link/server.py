@@ -4,7 +4,9 @@
 is not a request); :func:`serve` runs it on a :class:`~adaproj_edge.hal.serial.SerialPort`.
 Every request is answered: success, or an SMP error with a reason. Bad bytes and bad
 requests are logged and answered (or dropped, when they are not even a frame); no
-input makes the server raise.
+input makes the server raise. Logging comes in bursts (the first few refusals of a run
+one by one, then a summary), and the routine "no" a host gets while it looks for
+where to resume an upload (:data:`PROBES`) is neither a warning nor an error.
 
 Groups
 ------
@@ -38,6 +40,7 @@ from adaproj_edge.errors import (
     UploadOffsetError,
 )
 from adaproj_edge.hal.serial import SerialPort
+from adaproj_edge.link.burstlog import BurstLog
 from adaproj_edge.link.device import Content, DeviceRuntime, Settings
 from adaproj_edge.link.framing import FrameDecoder, encode_frame
 from adaproj_edge.link.ids import ADAPROJ_GROUP, BUF_SIZE, AdaprojCommand
@@ -63,6 +66,14 @@ Handler = Callable[[Request], dict[str, Any]]
 HASH_TYPES = {"sha256": {"format": 1, "size": 32}, "crc32": {"format": 0, "size": 4}}
 REPLY_MARGIN = 64
 """Bytes of a reply's header and CBOR keys next to a data chunk."""
+PROBES = {
+    (FS, FSC.FILE_STATUS, FS_MGMT_ERR.FILE_NOT_FOUND),
+    (FS, FSC.FILE_HASH_CHECKSUM, FS_MGMT_ERR.FILE_NOT_FOUND),
+    (FS, FSC.FILE_DOWNLOAD_UPLOAD, FS_MGMT_ERR.FILE_OFFSET_NOT_VALID),
+}
+"""(group, command, group error) of the answers a host gets while it finds where an
+upload goes on: no such file yet, or "this offset does not continue the upload, go on
+at ``len``". Counted as ``probes``, logged at DEBUG."""
 
 
 class Server:
@@ -78,6 +89,14 @@ class Server:
         The advertised SMP buffer: requests up to ``buf_size - 4`` bytes are taken.
     on_reset : callable, optional
         Called after the reply to an OS reset has been sent.
+
+    Attributes
+    ----------
+    counters : dict
+        ``requests`` handled, ``errors`` (refused), ``ignored`` (not requests) and
+        ``probes`` (routine resume answers, :data:`PROBES`).
+    decoder : FrameDecoder
+        The wire decoder :func:`serve` feeds; its ``stats`` count the bad frames.
     """
 
     def __init__(
@@ -95,7 +114,9 @@ class Server:
         self.buf_size = buf_size
         self.max_message = buf_size - 4
         self.on_reset = on_reset
-        self.counters = {"requests": 0, "errors": 0, "ignored": 0}
+        self.counters = {"requests": 0, "errors": 0, "ignored": 0, "probes": 0}
+        self.decoder = FrameDecoder(self.max_message)
+        self._refusals = BurstLog(log, "requests refused")
         self.after_reply: Callable[[], None] | None = None
         self._screenshot = b""
         A = AdaprojCommand
@@ -150,7 +171,9 @@ class Server:
                 )
             body = decode_body(message[HEADER.size :])
             req = Request(op, version, flags, group, seq, cmd, body)
-            return req.reply(handler(req))
+            reply = req.reply(handler(req))
+            self._refusals.ok()
+            return reply
         except SmpError as e:
             return self._refuse(req, e)
         except Exception as e:  # the server must answer, whatever went wrong inside
@@ -160,8 +183,19 @@ class Server:
             return self._refuse(req, smp_error)
 
     def _refuse(self, req: Request, e: SmpError) -> bytes:
-        self.counters["errors"] += 1
-        log.warning("group %d command %d refused (rc %d): %s", req.group, req.command, e.rc, e)
+        if e.group is not None and (req.group, req.command, e.rc) in PROBES:
+            self.counters["probes"] += 1
+            log.debug("group %d command %d: %s", req.group, req.command, e)
+        else:
+            self.counters["errors"] += 1
+            self._refusals.bad(
+                f"{req.group}/{req.command} rc {e.rc}",
+                "group %d command %d refused (rc %d): %s",
+                req.group,
+                req.command,
+                e.rc,
+                e,
+            )
         return req.error(e)
 
     def _translate(self, req: Request, e: Exception) -> SmpError:
@@ -263,7 +297,14 @@ class Server:
         active = self.store.active()
         return {
             "items": [
-                {"name": i.name, "len": i.size, "w": i.width, "h": i.height}
+                {
+                    "name": i.name,
+                    "len": i.size,
+                    "w": i.width,
+                    "h": i.height,
+                    "kind": i.kind,
+                    "dur": i.duration,
+                }
                 for i in self.store.items()
             ],
             "pending": [
@@ -314,7 +355,7 @@ class Server:
                 "used": self.store.used(),
                 "quota": self.store.limits.quota,
             },
-            "link": dict(self.counters),
+            "link": {**self.counters, "frames_dropped": dict(self.decoder.stats.dropped)},
         }
 
     def _screenshot_chunk(self, req: Request) -> dict[str, Any]:
@@ -364,11 +405,10 @@ def serve(
     poll : float
         Longest wait for input before checking ``stop``.
     """
-    decoder = FrameDecoder(server.max_message)
     log.info("SMP server up (buffer %d bytes)", server.buf_size)
     while stop is None or not stop.is_set():
         data = port.read(65536, poll)
-        for message in decoder.feed(data):
+        for message in server.decoder.feed(data):
             reply = server.handle(message)
             if reply is not None:
                 port.write(encode_frame(reply))

@@ -1,15 +1,18 @@
-"""The content store: images and masks people upload, kept safe across power loss.
+"""The content store: images, video clips and masks people upload, kept safe across
+power loss.
 
 Layout of the store directory::
 
-    photo.png                  committed items (PNG or JPEG), flat, validated names
+    photo.png, clip.mp4        committed items (PNG or JPEG; MP4, AVI or MKV), flat,
+                               validated names
     .incoming/<len>.<name>     an upload in progress; <len> is its declared size
     .active.json               what the projector shows (see :class:`ActiveRecord`)
 
 An upload appends to its file in ``.incoming`` and fsyncs it before the chunk is
 acknowledged, so whatever was acknowledged survives a crash and the upload resumes at
-the file's size. When the last byte is there, the whole file is checked as an image
-and only then renamed over the committed name, and both directories are fsynced.
+the file's size. When the last byte is there, the whole file is checked as content (an
+image: decoded whole; a clip: :func:`~adaproj_edge.content.video.check_video`) and only
+then renamed over the committed name, and both directories are fsynced.
 A failed, refused or interrupted upload never touches committed items or the active
 record.
 """
@@ -28,6 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from adaproj_edge.content.video import VIDEO_EXTENSIONS, is_video_name, probe
 from adaproj_edge.errors import (
     ContentError,
     ContentNotFoundError,
@@ -35,55 +39,37 @@ from adaproj_edge.errors import (
     InputError,
     QuotaError,
     UploadOffsetError,
+    VideoError,
 )
-from adaproj_edge.fileio import MAX_IMAGE_PIXELS, atomic_write_bytes, decode_image, fsync_dir
+from adaproj_edge.fileio import atomic_write_bytes, fsync_dir
 from adaproj_edge.fileio import image_size as header_size
+from adaproj_edge.link.contentcheck import HEAD, check_content, check_content_head
+from adaproj_edge.link.contentcheck import Limits as Limits  # re-exported: the store's limits
 
 log = logging.getLogger(__name__)
 
 NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
-EXTENSIONS = (".png", ".jpg", ".jpeg")
-PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-JPEG_MAGIC = b"\xff\xd8\xff"
-HEAD = 32
-"""Bytes of a file's start checked before anything is written (magic, PNG size)."""
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg")
+EXTENSIONS = IMAGE_EXTENSIONS + VIDEO_EXTENSIONS
 MAX_PENDING = 4
 """Uploads kept for resuming at once; a fifth drops the oldest."""
 
 
 @dataclass(frozen=True)
-class Limits:
-    """What the store accepts.
-
-    Attributes
-    ----------
-    quota : int
-        Bytes of committed items plus the declared sizes of pending uploads.
-    max_items : int
-        Committed items at most.
-    max_file : int
-        Bytes of one item at most.
-    max_pixels : int
-        Width times height at most, read from the header before decoding.
-    max_side : int
-        Width and height at most.
-    """
-
-    quota: int = 256 * 2**20
-    max_items: int = 256
-    max_file: int = 64 * 2**20
-    max_pixels: int = MAX_IMAGE_PIXELS
-    max_side: int = 16384
-
-
-@dataclass(frozen=True)
 class ItemInfo:
-    """A committed item: name, size in bytes, and its pixel size from the header."""
+    """A committed item: name, size in bytes, its pixel size (from the header or the
+    clip's probe) and, for a clip, its length in seconds (None for an image)."""
 
     name: str
     size: int
     width: int
     height: int
+    duration: float | None = None
+
+    @property
+    def kind(self) -> str:
+        """``"video"`` or ``"image"``."""
+        return "video" if is_video_name(self.name) else "image"
 
 
 @dataclass(frozen=True)
@@ -97,7 +83,8 @@ class Pending:
 
 @dataclass(frozen=True)
 class ActiveRecord:
-    """What the projector shows: an image, an optional mask, and the settings."""
+    """What the projector shows: an item (``image``: a picture or a clip), an optional
+    mask, and the settings."""
 
     image: str
     mask: str | None = None
@@ -116,8 +103,8 @@ def check_name(raw: str) -> str:
 
     One leading ``/`` is allowed (MCUmgr clients send absolute paths); what remains
     must be a plain file name of letters, digits, ``._-`` (not starting with a dot)
-    ending in ``.png``, ``.jpg`` or ``.jpeg``. Anything else, ``..`` and ``/`` in
-    particular, is refused.
+    ending in ``.png``, ``.jpg``, ``.jpeg`` (images) or ``.mp4``, ``.avi``, ``.mkv``
+    (clips). Anything else, ``..`` and ``/`` in particular, is refused.
     """
     name = raw[1:] if raw.startswith("/") else raw
     if not NAME_RE.fullmatch(name) or ".." in name:
@@ -129,36 +116,6 @@ def check_name(raw: str) -> str:
     if not name.lower().endswith(EXTENSIONS):
         raise ContentError(f"name {name!r} is not allowed: only {', '.join(EXTENSIONS)} files")
     return name
-
-
-def check_head(head: bytes, what: str, limits: Limits) -> None:
-    """Refuse bytes that do not start like a PNG or JPEG, or whose header is too big."""
-    if not (head.startswith(PNG_MAGIC) or head.startswith(JPEG_MAGIC)):
-        raise ImageError(f"{what} is not a PNG or JPEG image")
-    size = header_size(head)
-    if size is not None:
-        check_dimensions(size, what, limits)
-
-
-def check_dimensions(size: tuple[int, int], what: str, limits: Limits) -> None:
-    w, h = size
-    if w * h > limits.max_pixels:
-        raise ImageError(
-            f"{what} is {w}x{h} pixels, more than the {limits.max_pixels} allowed "
-            "(refused before decoding)"
-        )
-    if w > limits.max_side or h > limits.max_side or w < 2 or h < 2:
-        raise ImageError(f"{what} is {w}x{h} pixels; each side must be 2..{limits.max_side}")
-
-
-def check_image(data: bytes, what: str, limits: Limits) -> None:
-    """Refuse anything but a whole, decodable PNG or JPEG of acceptable size."""
-    check_head(data[:HEAD], what, limits)
-    size = header_size(data)
-    if size is None:
-        raise ImageError(f"{what}: cannot read the image size from its header")
-    check_dimensions(size, what, limits)
-    decode_image(data, what)
 
 
 class ContentStore:
@@ -216,9 +173,18 @@ class ContentStore:
         return out
 
     def items(self) -> list[ItemInfo]:
-        """Every committed item, by name, with its pixel size read from its header."""
+        """Every committed item, by name, with its pixel size (an image's header, a
+        clip's probe) and a clip's duration."""
         out = []
         for name, size in self.sizes().items():
+            if is_video_name(name):
+                try:
+                    info = probe(self.root / name, name)
+                except VideoError:
+                    out.append(ItemInfo(name, size, 0, 0, 0.0))
+                    continue
+                out.append(ItemInfo(name, size, info.width, info.height, info.duration))
+                continue
             try:
                 with (self.root / name).open("rb") as f:
                     head = f.read(65536)
@@ -297,16 +263,17 @@ class ContentStore:
 
         Everything that can be refused up front is refused before a byte is written:
         the name, the size, the quota, and the start of the data (PNG/JPEG magic, and
-        for a PNG the pixel count in its header).
+        for a PNG the pixel count in its header; a clip's container).
         """
         name = check_name(raw)
         lim = self.limits
         if total <= 0:
-            raise ImageError(f"{name}: an empty file is not an image")
+            kind = "a video" if is_video_name(name) else "an image"
+            raise ImageError(f"{name}: an empty file is not {kind}")
         if total > lim.max_file:
             raise QuotaError(f"{name} is {total} bytes; one item may be at most {lim.max_file}")
         if len(data) >= min(HEAD, total):
-            check_head(data[:HEAD], name, lim)
+            check_content_head(data[:HEAD], name, lim)
         old = self.pending_for(name)
         if old is not None:
             self._partial(old).unlink(missing_ok=True)
@@ -349,7 +316,7 @@ class ContentStore:
         if off < HEAD and data:
             head = (part.read_bytes() + data)[:HEAD]
             if len(head) >= min(HEAD, p.total):
-                self._refuse_on(lambda: check_head(head, name, self.limits), part)
+                self._refuse_on(lambda: check_content_head(head, name, self.limits), part)
         with part.open("ab") as f:
             f.write(data)
             f.flush()
@@ -368,12 +335,12 @@ class ContentStore:
             raise
 
     def _commit(self, name: str, part: Path) -> None:
-        data = part.read_bytes()
-        self._refuse_on(lambda: check_image(data, name, self.limits), part)
+        self._refuse_on(lambda: check_content(part, name, self.limits), part)
+        size = part.stat().st_size
         os.replace(part, self.root / name)
         fsync_dir(self.root)
         fsync_dir(self.incoming)
-        log.info("committed %s (%d bytes)", name, len(data))
+        log.info("committed %s (%d bytes)", name, size)
 
     # ---- what is shown ----------------------------------------------------------
 

@@ -39,18 +39,10 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.geometry.triangles import grid_triangles
+from adaproj_edge.geometry.triangles import grid_cells, grid_triangles
 from adaproj_edge.render.folds import guard as fold_guard
 from adaproj_edge.render.seams import surface_weights
 from adaproj_edge.warp.warpmap import Warp
-
-
-def _cells(positions: FloatArray, n_pixels: int) -> tuple[IntArray, FloatArray]:
-    """Cell index and fraction within it for every pixel coordinate 0..n_pixels-1."""
-    x = np.arange(n_pixels, dtype=np.float64)
-    c = np.clip(np.searchsorted(positions, x, side="right") - 1, 0, positions.size - 2)
-    f = (x - positions[c]) / (positions[c + 1] - positions[c])
-    return c, f
 
 
 @dataclass(frozen=True)
@@ -75,8 +67,8 @@ class PixelLayout:
     def build(cls, grid_uv: FloatArray, projector: Projector) -> PixelLayout:
         rows, cols = grid_uv.shape[:2]
         corners = grid_triangles(rows - 1, cols - 1)
-        cx, fx = _cells(grid_uv[0, :, 0], projector.width)
-        cy, fy = _cells(grid_uv[:, 0, 1], projector.height)
+        cx, fx = grid_cells(grid_uv[0, :, 0], projector.width)
+        cy, fy = grid_cells(grid_uv[:, 0, 1], projector.height)
         cxx, cyy = np.meshgrid(cx, cy)
         fxx, fyy = np.meshgrid(fx, fy)
         upper = fxx >= fyy  # triangle (a, b, e), else (a, e, d)

@@ -19,6 +19,9 @@ from adaproj_edge.geometry.surface import Surface
 
 UNLIT = 45
 
+DEFAULT_VIEWER = (0.8, -0.15, 0.1)
+"""A person 0.8 m to the right of the projector, a little above it (frame P, metres)."""
+
 
 @dataclass(frozen=True)
 class Viewer:
@@ -81,3 +84,13 @@ def view(surface: Surface, frame: NDArray[np.uint8], viewer: Viewer) -> NDArray[
         filled = cv2.inpaint(picture, holes.astype(np.uint8), 1, cv2.INPAINT_TELEA)
         picture[holes] = filled[holes]
     return picture
+
+
+def viewer_for(surface: Surface, eye: tuple[float, float, float]) -> Viewer:
+    """A viewer at ``eye`` looking at the surface point at the frame's centre."""
+    p = surface.projector
+    centre = surface.points_at(np.array([[(p.width - 1) / 2, (p.height - 1) / 2]]))[0]
+    if not np.all(np.isfinite(centre)):
+        valid = surface.points[surface.valid]
+        centre = valid.mean(axis=0) if valid.size else np.array([0.0, 0.0, 1.5])
+    return Viewer(eye, (float(centre[0]), float(centre[1]), float(centre[2])))

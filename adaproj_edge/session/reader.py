@@ -3,7 +3,8 @@
 The reader streams the file from the start (it never needs the summary at the end):
 a file that stops mid-way yields every message of its complete chunks and then
 reports ``truncated``; chunk CRCs are checked, so a torn chunk is dropped, never
-misread.
+misread. Bytes after the file's end (garbage appended) are counted, not read
+(:attr:`Scan.trailing_bytes`); :meth:`Scan.damage` says what is wrong in words.
 """
 
 from __future__ import annotations
@@ -42,6 +43,30 @@ class Scan:
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     truncated: bool = False
     complete: bool = False
+    trailing_bytes: int = 0
+    size: int = 0
+    read_bytes: int = 0
+
+    def damage(self) -> str | None:
+        """What is wrong with the file, in words (None: a whole, clean file)."""
+        if self.truncated or not self.complete:
+            return (
+                f"the file is cut short: it ends after {self.size} bytes without its closing "
+                "records (power loss or an interrupted copy?); read up to the cut"
+            )
+        if self.trailing_bytes:
+            return f"{self.trailing_bytes} unexpected bytes after the end of the file, ignored"
+        return None
+
+    def report(self) -> dict[str, Any]:
+        """The file's state, for summaries: size, complete, truncated, trailing bytes."""
+        return {
+            "bytes": self.size,
+            "complete": self.complete and not self.truncated,
+            "truncated": self.truncated or not self.complete,
+            "trailing_bytes": self.trailing_bytes,
+            "damage": self.damage(),
+        }
 
 
 def _open(path: Path) -> IO[bytes]:
@@ -65,16 +90,21 @@ def iter_records(
     channels: dict[int, str] = {}
     seen_header = False
     with _open(path) as f:
+        scan.size = os.fstat(f.fileno()).st_size
         records = StreamReader(f, validate_crcs=True).records
         while True:
             try:
                 r: Any = next(records)
             except StopIteration:
+                scan.read_bytes = f.tell()
+                if scan.complete:
+                    scan.trailing_bytes = scan.size - scan.read_bytes
                 break
             except _TORN as e:
                 if not seen_header:
                     raise InputError(f"{path} is not an MCAP session file ({e})") from None
                 scan.truncated = True
+                scan.read_bytes = f.tell()
                 break
             seen_header = True
             if isinstance(r, Channel):

@@ -23,7 +23,7 @@ from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.analytic import SURFACES, AnalyticSurface, get_surface, ray_cast
 from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.geometry.mesh_surface import MeshSurface, load_mesh, ply_bytes, rasterize_depth
+from adaproj_edge.geometry.mesh_surface import MeshSurface, load_mesh, ply_bytes
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.rotations import quaternion, rotation_of
 from adaproj_edge.geometry.surface import Surface
@@ -95,10 +95,13 @@ class Scene:
     ) -> FloatArray:
         """Points (height, width, 3) in the camera frame where its pixel rays meet the
         surface (NaN: nothing) for a camera with intrinsics ``K`` at pose (R_W_C, t_W_C).
+
+        A mesh is cast in one call through its BVH (built once per scene); the rays
+        have z = 1 in the camera frame, so the hit's ray parameter is its depth.
         """
         rays = Projector(K, width, height).rays(Projector(K, width, height).pixel_grid())
         if isinstance(self.surface, MeshSurface):
-            z = rasterize_depth(self.surface, K, width, height, R_W_C, t_W_C)
+            z = self.surface.intersect(np.asarray(t_W_C, dtype=np.float64), rays @ R_W_C.T)
             return rays * z[..., None]
         hits = ray_cast(self.surface, t_W_C, rays @ R_W_C.T)
         return (hits - t_W_C) @ R_W_C

@@ -14,12 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.geometry.depth import (
-    DepthSettings,
-    SurfaceEstimate,
-    SurfaceFilter,
-    estimate_surface,
-)
+from adaproj_edge.geometry.depth.estimate import SurfaceEstimate, SurfaceEstimator
+from adaproj_edge.geometry.depth.settings import DepthSettings
+from adaproj_edge.geometry.depth.temporal import SurfaceFilter
 from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.motion.tracker import is_still
@@ -46,6 +43,7 @@ def track_surface(
     """Surface estimates, one per depth frame, in record order."""
     imu: deque[ImuSample] = deque()
     filt = SurfaceFilter()
+    estimator = SurfaceEstimator(calibration, settings)
     for rec in records:
         if isinstance(rec, ImuSample):
             imu.append(rec)
@@ -59,5 +57,5 @@ def track_surface(
             np.array([s.gyro for s in window]).reshape(-1, 3),
             np.array([s.accel for s in window]).reshape(-1, 3),
         )
-        est = estimate_surface(rec.metres(), calibration, shape, settings)
+        est = estimator.estimate(rec.metres(), shape)
         yield Tracked(rec, still, filt.update(est, still))

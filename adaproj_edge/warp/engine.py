@@ -1,4 +1,6 @@
-"""compute_warp: the whole method, from a Surface and a content map to a Warp.
+"""The steps of the method and their settings: standard (letterbox), the content-aware
+alternation (ours, and the paper's as written), and a Warp from solved positions.
+:mod:`adaproj_edge.warp.planner` puts them together (:func:`compute_warp`).
 
 Modes
 -----
@@ -15,22 +17,21 @@ Modes
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal, Protocol
 
 import numpy as np
-from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD, ContentMap
 from adaproj_edge.errors import InputError, WarpError
+from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.warp.adaptive import refine_grid
 from adaproj_edge.warp.anderson import Anderson
 from adaproj_edge.warp.guard import guard
-from adaproj_edge.warp.mesh import MeshGeometry, WarpCache, keeps_orientation
+from adaproj_edge.warp.mesh import MeshGeometry
+from adaproj_edge.warp.orientation import unfolded
 from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
 from adaproj_edge.warp.solve import (
     ContentAwareSolver,
@@ -88,8 +89,8 @@ class WarpSettings:
     alternation : "ours" (default) or "paper" (§4.2 as written: fixed boundary,
         regulariser toward the last iterate; kept for comparison)
     adaptive : split the grid's columns and rows where the surface bends faster than
-        the grid samples it (:mod:`~adaproj_edge.warp.adaptive`); the warp's grid is
-        then finer there
+        the grid samples it (:mod:`~adaproj_edge.warp.adaptive`; the full-grid path);
+        the warp's grid is then finer there
     """
 
     mode: Mode = "content"
@@ -114,9 +115,9 @@ class WarpSettings:
             raise InputError("max_iterations, tolerance and lambda must be positive")
 
 
-def standard_warp(surface: Surface, content_size: tuple[int, int], grid: Grid) -> Warp:
+def standard_warp(projector: Projector, content_size: tuple[int, int], grid: Grid) -> Warp:
     """The content letterboxed into the full frame: what a plain projector shows."""
-    proj = surface.projector
+    proj = projector
     grid_uv = grid.vertices(proj)
     w, h = content_size
     scale = min(proj.width / w, proj.height / h)
@@ -127,158 +128,43 @@ def standard_warp(surface: Surface, content_size: tuple[int, int], grid: Grid) -
     return Warp(grid_uv, image_xy, content_size, proj, meta, depth=None)
 
 
-def compute_warp(
-    surface: Surface,
-    content_size: tuple[int, int],
-    content_map: ContentMap | NDArray[np.floating] | None = None,
-    settings: WarpSettings | None = None,
-    backend: Backend = FAST,
-    cache: WarpCache | None = None,
-) -> Warp:
-    """The warp for ``surface`` and content of ``content_size`` (w, h) pixels.
-
-    Parameters
-    ----------
-    surface : Surface
-        Projector-space point map (any lattice resolution).
-    content_size : (w, h)
-    content_map : ContentMap or (h', w') float array in [0, 1], optional
-        The content map C (saliency max user mask) over the whole content, at any
-        resolution; None means uniform. Vertices are salient where C >= threshold.
-    settings : WarpSettings, optional
-    backend : the solves (the fast ones, or the reference for comparison)
-    cache : WarpCache, optional
-        Keeps the mesh topology and solver structures between calls (a device keeps
-        one; a scene seen again skips that set-up).
-
-    Returns
-    -------
-    Warp with ``meta`` holding the mode, grid, iterations and stage timings (s).
-    """
-    settings = settings or WarpSettings()
-    w, h = content_size
-    if w < 2 or h < 2:
-        raise InputError(f"content size {w}x{h} is too small")
-    if settings.mode == "standard":
-        return standard_warp(surface, content_size, settings.grid)
-    surface.check_usable()
-    if settings.mode == "content" and settings.alternation == "paper" and backend.paper:
-        return _paper_warp(surface, content_size, content_map, settings, backend.paper)
-    timings: dict[str, Any] = {}
-    t0 = time.perf_counter()
-    mesh = MeshGeometry.build(surface, settings.grid, cache)
-    extra: dict[str, Any] = {}
-    if settings.adaptive:
-        refinement = refine_grid(surface, settings.grid, mesh.curved_cells)
-        if refinement.refined:
-            mesh = MeshGeometry.build(surface, refinement.grid, cache, refinement.grid_uv)
-            extra["mesh"] = str(refinement.grid)
-            extra["refined"] = {
-                "columns": refinement.factor_x.tolist(),
-                "rows": refinement.factor_y.tolist(),
-            }
-    v = backend.conformal(mesh)
-    timings["conformal"] = time.perf_counter() - t0
-    iterations = 0
-    salient_fraction = 0.0
-    if settings.mode == "content":
-        cmap = _content_map(content_map, content_size, settings.threshold)
-        v, placement, iterations, salient_fraction, guarded = content_aware(
-            mesh, v, content_size, cmap, settings, backend, timings
-        )
-        extra.update(guarded)
-        timings["refine"] = time.perf_counter() - t0 - timings["init"]
-    else:
-        placement = place(mesh, v, content_size, settings.up)
-    timings["total"] = time.perf_counter() - t0
-    warp = make_warp(
-        mesh, v, placement, surface, content_size, settings, iterations, salient_fraction, timings
-    )
-    warp.meta.update(extra)
-    return warp
-
-
 def content_aware(
     mesh: MeshGeometry,
     v_conformal: FloatArray,
-    content_size: tuple[int, int],
-    content_map: ContentMap | None,
+    placement: Placement,
+    content_map: ContentMap,
     settings: WarpSettings,
     backend: Backend = FAST,
-    timings: dict[str, Any] | None = None,
-) -> tuple[FloatArray, Placement, int, float, dict[str, Any]]:
-    """The ``content`` mode from the conformal positions ``v_conformal`` (n, 2).
+    on_step: Callable[[], None] | None = None,
+) -> tuple[FloatArray, Placement, int, float, dict[str, Any]] | None:
+    """Our ``content`` mode from the conformal positions ``v_conformal`` (n, 2) placed
+    by ``placement``; None when nothing or everything salient shows (then the
+    content-free warp E' is the answer).
 
-    With salient and non-salient content in view, our alternation (:func:`refine`)
-    starts from the conformal warp (its fixed point does not depend on the start) and
-    :func:`~adaproj_edge.warp.guard.guard` keeps it only where it is no worse than the
-    conformal warp on the subject; with none (or no content map), the content-free warp
-    E' = E_a + lambda E_r (paper §4.1). ``alternation="paper"``: E', then the paper's
-    alternation as written.
+    The alternation (:func:`refine`) starts from the conformal warp scaled to the
+    salient region's size on the surface (its fixed point does not depend on the start;
+    on a developable surface that start is the answer), and
+    :func:`~adaproj_edge.warp.guard.guard` keeps its result only where it is no worse
+    than the conformal warp on the subject.
 
-    Returns positions (n, 2), their placement, the alternation's steps, the salient
-    vertex fraction and meta (``guard``: what was kept and why).
+    Returns
+    -------
+    Positions (n, 2), their placement, the steps taken, the salient vertex fraction and
+    meta (``guard``: what was kept and why).
     """
-    t0 = time.perf_counter()
-    timings = {} if timings is None else timings
-    placement = place(mesh, v_conformal, content_size, settings.up)
-    w = None if content_map is None else content_map.weights(placement.apply(v_conformal))
-    if content_map is None or w is None or settings.alternation == "paper" or w.min() == w.max():
-        v, _ = backend.content_free(mesh, v_conformal, settings.lam)
-        placement = place(mesh, v, content_size, settings.up)
-        timings["init"] = time.perf_counter() - t0
-        if content_map is None or settings.alternation != "paper":
-            return v, placement, 0, 0.0 if w is None else float(w.mean()), {}
-        v, iterations, fraction = refine_as_paper(
-            mesh, v_conformal, v, placement, content_map, settings
-        )
-        return v, placement, iterations, fraction, {}
-    timings["init"] = time.perf_counter() - t0
-    # the conformal warp's scale is set by two pinned vertices; the salient region's is
-    # that of the surface: start there (on a developable surface that is the answer)
+    w = content_map.weights(placement.apply(v_conformal))
+    if w.min() == w.max():
+        return None
     e = mesh.edges
     salient = (w[e[:, 0]] + w[e[:, 1]]) > 0
     chord = np.linalg.norm(v_conformal[e[salient, 0]] - v_conformal[e[salient, 1]], axis=1)
     scale = float(np.sum(mesh.lengths[salient]) / np.sum(chord))
     start = Placement(placement.angle, placement.scale / scale, placement.offset, placement.centre)
     v, aware_placement, iterations, fraction = refine(
-        mesh, v_conformal * scale, start, content_map, settings, backend, timings
+        mesh, v_conformal * scale, start, content_map, settings, backend, on_step
     )
     choice = guard(mesh, (v, aware_placement), (v_conformal, placement), content_map, settings.up)
     return choice.v, choice.placement, iterations, fraction, {"guard": choice.meta}
-
-
-def _content_map(
-    content_map: ContentMap | NDArray[np.floating] | None,
-    content_size: tuple[int, int],
-    threshold: float,
-) -> ContentMap | None:
-    if content_map is None:
-        return None
-    values = content_map.values if isinstance(content_map, ContentMap) else content_map
-    if np.ndim(values) != 2:
-        raise InputError(f"content map must be a 2D array, got shape {np.shape(values)}")
-    return ContentMap(np.asarray(values, np.float32), content_size, threshold)
-
-
-def _paper_warp(
-    surface: Surface,
-    content_size: tuple[int, int],
-    content_map: ContentMap | NDArray[np.floating] | None,
-    settings: WarpSettings,
-    paper: PaperWarp,
-) -> Warp:
-    cmap = _content_map(content_map, content_size, settings.threshold)
-    image_xy, meta = paper(surface, content_size, cmap, settings)
-    grid_uv = settings.grid.vertices(surface.projector)
-    rows, cols = grid_uv.shape[:2]
-    return Warp(
-        grid_uv,
-        image_xy.reshape(rows, cols, 2),
-        content_size,
-        surface.projector,
-        {"mode": "content", "alternation": "paper", "grid": str(settings.grid), **meta},
-    )
 
 
 def refine(
@@ -288,41 +174,41 @@ def refine(
     content_map: ContentMap,
     settings: WarpSettings,
     backend: Backend = FAST,
-    timings: dict[str, Any] | None = None,
+    on_step: Callable[[], None] | None = None,
 ) -> tuple[FloatArray, Placement, int, float]:
     """The content-aware alternation (Algorithm 1, our energy); returns the final
     positions, their placement, the number of steps and the salient vertex fraction.
+    ``on_step`` is called after each step taken (a caller's stopwatch).
 
     Rounds: the salient set (eq. 8, from the current placement) and the placement held,
-    steps (Anderson-accelerated, :mod:`~adaproj_edge.warp.anderson`) until the mean
-    vertex motion is below the tolerance (ten times it while the salient set may still
-    change); then the content is placed again, and when that shows new salient
-    vertices another round follows. The salient set only grows (a vertex that showed
-    salient content stays salient), so the alternation cannot oscillate.
+    steps (Anderson-accelerated, :mod:`~adaproj_edge.warp.anderson`) until the plain
+    step moves the vertices less than the tolerance (mean, content pixels); then the
+    content is placed again, and when that shows new salient vertices another round
+    follows. The salient set only grows (a vertex that showed salient content stays
+    salient), so the alternation cannot oscillate.
     """
     solver: StepSolver | None = None
     iterations = 0
-    steps: list[float] = []
     accel = Anderson()
     # eq. 8 at the start of every round, from the placement of that moment
     w = content_map.weights(placement.apply(v)).astype(np.float64)
     placed = True  # the placement is that of v
     while iterations < settings.max_iterations and w.min() != w.max():
-        t0 = time.perf_counter()
         if solver is None:
             solver = backend.content_aware(mesh, settings.weights)
         g = solver.step(v, w)
         v_next = accel.next(v.ravel(), g.ravel()).reshape(-1, 2)
-        if not _orientation_ok(mesh, v_next):
+        if not unfolded(v_next, mesh.tris):
             accel.reset()
             v_next = g  # the plain step, unless it folds too
-            if not _orientation_ok(mesh, v_next):
+            if not unfolded(v_next, mesh.tris):
                 break  # keep the last fold-free iterate
         # the plain step's length: how far the iterate still is from the fixed point
         motion = placement.scale * float(np.mean(np.linalg.norm(g - v, axis=1)))
         v, placed = v_next, False
         iterations += 1
-        steps.append(time.perf_counter() - t0)
+        if on_step is not None:
+            on_step()
         if motion < settings.tolerance:
             # the round has settled: place the content again and look at it
             placement = place(mesh, v, content_map.content_size, settings.up, placement)
@@ -334,8 +220,6 @@ def refine(
             accel.reset()  # a new salient set: a new fixed-point map
     if not placed:
         placement = place(mesh, v, content_map.content_size, settings.up, placement)
-    if timings is not None:
-        timings["iterations"] = steps
     return v, placement, iterations, float(w.mean())
 
 
@@ -359,7 +243,7 @@ def refine_as_paper(
         if w.min() == w.max():
             break
         v_new = paper.step(v, w, c)
-        if not _orientation_ok(mesh, v_new):
+        if not unfolded(v_new, mesh.tris):
             break
         motion = float(np.mean(np.linalg.norm(placement.apply(v_new) - xy, axis=1)))
         v = v_new
@@ -367,11 +251,6 @@ def refine_as_paper(
         if motion < settings.tolerance:
             break
     return v, iterations, fraction
-
-
-def _orientation_ok(mesh: MeshGeometry, v: FloatArray) -> bool:
-    """No triangle folded over (all keep the orientation they have in the projector)."""
-    return keeps_orientation(mesh, v)
 
 
 def make_warp(
@@ -383,12 +262,11 @@ def make_warp(
     settings: WarpSettings,
     iterations: int,
     salient_fraction: float,
-    timings: dict[str, Any],
 ) -> Warp:
     """A Warp from solved positions ``v`` (n, 2) of ``mesh`` and their placement; raises
     :class:`WarpError` if the mesh folds over. For callers that run the solves
     themselves (the device runtime keeps solver state between updates)."""
-    if not _orientation_ok(mesh, v):
+    if not unfolded(v, mesh.tris):
         raise WarpError("the warp folds over; the surface is too irregular for this grid")
     rows, cols = mesh.grid.rows + 1, mesh.grid.cols + 1
     image_xy = np.full((rows * cols, 2), np.nan)
@@ -403,7 +281,6 @@ def make_warp(
         "threshold": settings.threshold,
         "salient_vertex_fraction": salient_fraction,
         "used_vertices": mesh.n,
-        "timings": timings,
         "surface": surface.meta,
     }
     return Warp(

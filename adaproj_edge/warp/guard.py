@@ -10,7 +10,8 @@ content -> surface, angle error ``sigma1 / sigma2 - 1`` and the spread of
 weighted by its projector area and the salient share of it - and keeps the
 content-aware warp when it is no worse on both, else the largest blend toward the
 conformal warp that is (the conformal warp itself in the end). ``meta`` says which and
-why. Both :func:`~adaproj_edge.warp.engine.compute_warp` and the device's planner call
+why. Both the full-grid path (:func:`~adaproj_edge.warp.engine.content_aware`) and the
+device's coarse-to-fine refinement (:class:`~adaproj_edge.warp.planner.WarpPlanner`) call
 it with their two vertex sets.
 """
 
@@ -24,7 +25,8 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import ContentMap
-from adaproj_edge.warp.mesh import MeshGeometry, keeps_orientation
+from adaproj_edge.warp.mesh import MeshGeometry
+from adaproj_edge.warp.orientation import unfolded
 from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
 
 # the content-aware warp must be this much better than the conformal one on each count
@@ -117,11 +119,11 @@ def subject_distortion(
     return SubjectDistortion(float(wk @ angle / total), spread, total)
 
 
-def no_worse(a: SubjectDistortion, b: SubjectDistortion) -> bool:
-    """Whether ``a`` is no worse than ``b`` in angle and in size (see :data:`MARGIN`)."""
+def no_worse(a: SubjectDistortion, b: SubjectDistortion, margin: float = MARGIN) -> bool:
+    """Whether ``a`` is no worse than ``b`` in angle and in size, by ``margin``."""
     return bool(
-        a.angle <= max(b.angle * (1 - MARGIN), FLOOR)
-        and a.size <= max(b.size * (1 - MARGIN), FLOOR)
+        a.angle <= max(b.angle * (1 - margin), FLOOR)
+        and a.size <= max(b.size * (1 - margin), FLOOR)
     )
 
 
@@ -141,6 +143,7 @@ def guard(
     conformal: tuple[FloatArray, Placement],
     content_map: ContentMap,
     up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
+    margin: float = MARGIN,
 ) -> Choice:
     """Keep the content-aware warp, a blend, or the conformal warp: the one with most of
     the content-aware warp that is no worse than the conformal warp on the salient
@@ -153,6 +156,8 @@ def guard(
         The two candidates, each with the placement made for it.
     content_map : ContentMap
     up : "up" in frame P, for placing a blend.
+    margin : how much better than the conformal warp a candidate must look on the mesh
+        (:data:`MARGIN`; more where the mesh is further from what is displayed).
 
     Returns
     -------
@@ -167,17 +172,17 @@ def guard(
     if m_aware.weight <= 0 or m_conf.weight <= 0:
         meta.update(choice="content-aware", reason="no salient content shows", t=1.0)
         return Choice(va, pa, 1.0, meta)
-    if no_worse(m_aware, m_conf):
+    if no_worse(m_aware, m_conf, margin):
         meta.update(choice="content-aware", reason="no worse in angle and size", t=1.0)
         return Choice(va, pa, 1.0, meta)
     base = _aligned(vc, va)
     for t in BLENDS:
         vt = t * va + (1 - t) * base
-        if not keeps_orientation(mesh, vt):
+        if not unfolded(vt, mesh.tris):
             continue
         pt = place(mesh, vt, content_map.content_size, up, pa)
         m = subject_distortion(mesh, pt.apply(vt), content_map)
-        if no_worse(m, m_conf):
+        if no_worse(m, m_conf, margin):
             meta.update(
                 choice="blend",
                 reason="the content-aware warp alone is worse in angle or size",

@@ -238,16 +238,6 @@ class MeshGeometry:
         return cls(grid, grid_uv, pts, topo, coords, sums / counts, planar_shapes(tri_pts), curved)
 
 
-def keeps_orientation(mesh: MeshGeometry, v: FloatArray) -> bool:
-    """Whether every triangle of ``mesh`` keeps, at positions ``v`` (n, 2), the
-    orientation it has in the projector (none folded over)."""
-    q = v[mesh.tris]
-    cross = (q[:, 1, 0] - q[:, 0, 0]) * (q[:, 2, 1] - q[:, 0, 1]) - (q[:, 1, 1] - q[:, 0, 1]) * (
-        q[:, 2, 0] - q[:, 0, 0]
-    )
-    return bool(np.all(cross > 0))
-
-
 def planar_shapes(tri_pts: FloatArray) -> FloatArray:
     """Triangles (T, 3, 3) in 2D frames of their own planes (T, 3, 2): corner 0 at the
     origin, corner 1 on the +x axis, corner 2 on the side the content's y axis has

@@ -12,13 +12,12 @@ then E' = E_a + lambda E_r with two corner vertices pinned at (0, 0) and (1, gam
 (§4.1, same orientation), then the alternation of eq. 8-9 (boundary fixed, the
 regulariser toward the last iterate) solved with ``spsolve`` at every step until the
 mean vertex motion is below the tolerance (0.05 content pixels) or after 10 steps.
-``tools/bench_warp.py`` times :func:`~adaproj_edge.warp.engine.compute_warp` against it
+``tools/bench_warp.py`` times :func:`~adaproj_edge.warp.planner.compute_warp` against it
 (``compute_warp(..., WarpSettings(alternation="paper"), REFERENCE)`` runs it).
 """
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -250,9 +249,8 @@ def paper_warp(
     """The paper's method as written, straightforwardly (see the module docstring).
 
     Returns content pixel coordinates (R*C, 2) of the grid vertices (NaN without
-    surface) and ``meta`` (iterations, salient fraction, timings in s).
+    surface) and ``meta`` (iterations, salient fraction).
     """
-    t0 = time.perf_counter()
     mesh = paper_mesh(surface, settings.grid)
     n = mesh.n
     w, h = content_size
@@ -288,7 +286,6 @@ def paper_warp(
         out: FloatArray = (v - origin) * scale - 0.5
         return out
 
-    timings: dict[str, Any] = {"init": time.perf_counter() - t0}
     boundary = np.unique(mesh.boundary)
     v = v0
     iterations = 0
@@ -326,8 +323,7 @@ def paper_warp(
                 break
     image_xy = np.full(((settings.grid.rows + 1) * (settings.grid.cols + 1), 2), np.nan)
     image_xy[mesh.verts] = to_pixels(v)
-    timings["total"] = time.perf_counter() - t0
-    meta = {"iterations": iterations, "salient_vertex_fraction": fraction, "timings": timings}
+    meta = {"iterations": iterations, "salient_vertex_fraction": fraction}
     return image_xy, meta
 
 

@@ -71,8 +71,8 @@ def test_a_recorded_push_switches_the_content_at_the_push(
     assert link["requests"] == link["replies"] == link["recorded_replies"] == 6
     assert link["content_activations"] == 1
     assert link["tx_mismatches"] == 0 and link["dropped_frames"] == {}
-    # the client's probe of a file the device does not hold yet, answered with an error
-    assert link["refused"] == 1
+    # the client's probe of a file the device does not hold yet is a probe, not a refusal
+    assert link["refused"] == 0
 
 
 def test_the_pushed_file_lands_in_the_store_byte_exact(
@@ -134,7 +134,7 @@ def test_the_replay_command_reports_the_link(
 ) -> None:
     assert main(["replay", str(PUSH_SESSION), "--out", str(tmp_path), "--no-score"]) == 0
     out = capsys.readouterr().out
-    assert "serial link: 6 requests (1 refused, 0 bad frames dropped), 1 content activations" in out
+    assert "serial link: 6 requests (0 refused, 0 bad frames dropped), 1 content activations" in out
     assert "0 replies differ" in out
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["link"]["content_activations"] == 1

@@ -16,9 +16,10 @@ from typing import Any
 
 import pytest
 
+from adaproj_edge.app.content import builtin_item, mask_content_map
 from adaproj_edge.app.live import Device, _Source, run_loop
-from adaproj_edge.app.replay import ReplayOptions, builtin_item, replay_session
-from adaproj_edge.app.runtime import Runtime, mask_content_map
+from adaproj_edge.app.replay import ReplayOptions, replay_session
+from adaproj_edge.app.runtime import Runtime
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.button import ButtonEvent
 from adaproj_edge.hal.clock import MonotonicClock

@@ -10,9 +10,10 @@ import cv2
 import numpy as np
 import pytest
 
-from adaproj_edge.app.posecache import CachedWarp, PoseCache, common_nodes, pose_key
-from adaproj_edge.app.replay import builtin_item
-from adaproj_edge.app.runtime import AppSettings, Item, Runtime, State, mask_content_map
+from adaproj_edge.app.content import Item, builtin_item, mask_content_map
+from adaproj_edge.app.inputs import SourceFault, feed
+from adaproj_edge.app.runtime import Runtime, State
+from adaproj_edge.app.settings import AppSettings
 from adaproj_edge.errors import ImageError
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.button import ButtonEvent
@@ -39,7 +40,7 @@ def _runtime(items: list[Item] | None = None) -> tuple[Runtime, VirtualClock, Me
 
 def _second_item() -> Item:
     img = np.full((300, 400, 3), 200, np.uint8)
-    return Item("grey", img, mask_content_map(img, None, 0.5))
+    return Item("grey", img, mask_content_map("grey", img, None, 0.5))
 
 
 def _press(rt: Runtime, clock: VirtualClock, t_ms: int, held_ms: int = 100) -> None:
@@ -69,7 +70,7 @@ def test_gestures_double_press_long_press_and_press() -> None:
     clock.advance_to(6500 * MS)
     rt.tick()
     assert rt.state == State.CAPTURING
-    kinds = [e["kind"] for e in rt.events if e["event"] == "gesture"]
+    kinds = [e["kind"] for e in rt.telemetry.events if e["event"] == "gesture"]
     assert kinds == ["double", "long", "press"]
 
 
@@ -95,43 +96,6 @@ def test_motion_starts_at_once_and_settles_with_hysteresis() -> None:
     assert len(settled) == 1 and settled[0][1] is False
     assert settled[0][0] >= 0.8e9 + 0.3e9  # not before settle_s of stillness
     assert abs(m.orientation_vector()[0]) > 0.1  # the turn was integrated
-
-
-def test_lattices_of_two_resolutions_compare_at_their_common_nodes() -> None:
-    coarse = np.arange(21 * 21, dtype=np.float64).reshape(21, 21)
-    fine = np.full((81, 81), -1.0)
-    fine[::4, ::4] = coarse
-    for a, b in ((fine, coarse), (coarse, fine)):
-        pair = common_nodes(a, b)
-        assert pair is not None and np.array_equal(pair[0], pair[1])
-    assert common_nodes(np.zeros((30, 30)), coarse) is None  # no common nodes
-    # but a warp made from the unsnapped (noisier) lattice never serves a snapped one
-    entry = CachedWarp(None, coarse + 1.5, None, None, None, None)  # type: ignore[arg-type]
-    assert entry.matches(coarse + 1.5, 0.01, 0.97)
-    assert not entry.matches(np.where(fine < 0, 7.0, fine + 1.5), 0.01, 0.97)
-
-
-def test_pose_cache_is_bounded_and_checks_the_depth() -> None:
-    depth = np.full((21, 21), 1.5)
-
-    def entry(scale: float) -> CachedWarp:
-        return CachedWarp(None, depth * scale, None, None, None, None)  # type: ignore[arg-type]
-
-    cache = PoseCache(2)
-    entries = [entry(1.0 + 0.1 * k) for k in range(3)]
-    for k, e in enumerate(entries):
-        cache.put((k,), e)
-    assert len(cache) == 2 and cache.get((0,), depth) is None  # the oldest went
-    assert cache.get((2,), depth * 1.2) is entries[2]
-    assert cache.get((1,), depth * 1.05) is None  # same key, another surface: rejected
-    assert (cache.hits, cache.misses, cache.rejected) == (1, 2, 1)
-    # a pose whose key changed (a bin edge) is found by its surface, and refiled
-    assert cache.get((9,), depth * 1.201) is entries[2]
-    assert cache.found_by_surface == 1 and cache.get((9,), depth * 1.2) is entries[2]
-    assert len(cache) == 1
-    o = np.array([0.0, 0.0, 0.0])
-    assert pose_key(o, depth, 0.03, 0.03) != pose_key(o + 0.05, depth, 0.03, 0.03)
-    assert pose_key(o, depth, 0.03, 0.03) != pose_key(o, depth + 0.1, 0.03, 0.03)
 
 
 @pytest.fixture(scope="module")
@@ -160,9 +124,9 @@ def test_a_still_hand_gives_a_still_image(still_records: list[object]) -> None:
     rt, clock, _display = _runtime()
     _feed(rt, clock, still_records)
     assert rt.state == State.PROJECTING
-    assert not [e for e in rt.events if e["event"] == "moving"]
+    assert not [e for e in rt.telemetry.events if e["event"] == "moving"]
     # the capture, then at most one re-warp as the average of more frames settles
-    assert 1 <= len(rt.updates) <= 2, rt.updates
+    assert 1 <= len(rt.telemetry.updates) <= 2, rt.telemetry.updates
     assert rt.counters["estimates"] >= 8
 
 
@@ -174,10 +138,10 @@ def test_the_history_the_runtime_keeps_is_bounded(still_records: list[object]) -
     rt = Runtime(CAL, display, clock, [builtin_item()], settings, mask_content_map)
     rt.boot()
     _feed(rt, clock, still_records)
-    assert rt.update_count > 3 and len(rt.updates) == 3
-    assert len(rt.events) <= 3 and len(rt.states) <= 3
-    assert all(len(v) <= 3 for v in rt.pipeline.times.samples.values())
-    assert rt.pipeline.times.summary()["render"]["n"] == 3
+    assert rt.telemetry.update_count > 3 and len(rt.telemetry.updates) == 3
+    assert len(rt.telemetry.events) <= 3 and len(rt.telemetry.states) <= 3
+    assert all(len(v) <= 3 for v in rt.telemetry.times.samples.values())
+    assert rt.telemetry.times.summary()["render"]["n"] == 3
 
 
 def test_once_settled_the_refinement_builds_on_an_averaged_content_free_warp() -> None:
@@ -188,12 +152,12 @@ def test_once_settled_the_refinement_builds_on_an_averaged_content_free_warp() -
     settings = SimulationSettings(seconds=3.2, depth_fps=15.0, seed=3, presses=(0.1,), motion=hand)
     rt, clock, _ = _runtime()
     _feed(rt, clock, list(simulate(Scene.load("cylinder-convex"), CAL, settings)))
-    settled = [e["t_ns"] for e in rt.events if e["event"] == "settled"]
+    settled = [e["t_ns"] for e in rt.telemetry.events if e["event"] == "settled"]
     assert settled
-    after = [u for u in rt.updates if u["t_ns"] > settled[-1]]
+    after = [u for u in rt.telemetry.updates if u["t_ns"] > settled[-1]]
     assert after and after[0]["reason"] == "settled"
     assert after[0]["kind"] == "content-aware" and after[0]["cache_hit"] is True
-    assert rt.pipeline.times.summary()["prepare"]["n"] >= 1
+    assert rt.telemetry.times.summary()["prepare"]["n"] >= 1
     # the first settled frame is about 4 depth frames (at 15 a second) after settling
     assert 3 * MS * 66 <= after[0]["t_ns"] - settled[-1] <= 6 * MS * 67
 
@@ -202,10 +166,10 @@ def test_faults_keep_the_frame_mark_it_and_clear(still_records: list[object]) ->
     rt, clock, display = _runtime()
     _feed(rt, clock, still_records)
     good = display.last.copy()  # type: ignore[union-attr]
-    rt.on_imu_error("IMU read failed")
-    rt.on_depth_error("the OAK-D stopped sending depth")
+    feed(rt, SourceFault("imu", "IMU read failed"))
+    feed(rt, SourceFault("depth", "the OAK-D stopped sending depth"))
     marked = display.last
-    assert marked is not None and set(rt.faults) == {"imu", "camera"}
+    assert marked is not None and set(rt.faults.active) == {"imu", "camera"}
     differs = np.any(marked != good, axis=2)
     ys, xs = np.nonzero(differs)
     assert ys.max() < 30 and xs.min() > CAL.projector.width - 60  # only the small mark
@@ -214,7 +178,7 @@ def test_faults_keep_the_frame_mark_it_and_clear(still_records: list[object]) ->
     clock.advance_to(clock.now_ns() + 100 * MS)
     rt.on_imu(replace(imu[-1], sensor_ns=clock.now_ns(), receive_ns=clock.now_ns()))
     rt.on_depth(replace(frames[-1], receive_ns=clock.now_ns()))
-    assert rt.faults == {} and np.array_equal(display.last, good)
+    assert rt.faults.active == {} and np.array_equal(display.last, good)
     assert rt.status()["state"] == "projecting"
 
 
@@ -249,6 +213,15 @@ def test_content_from_the_link_is_shown_without_a_restart(tmp_path: Path) -> Non
     with pytest.raises(ImageError):
         rt.activate(Content(tmp_path / "red.png", tmp_path / "small.png"))
     assert rt.status()["errors"]
+    # a mask of another size but the content's aspect is fitted (as the CLI does)
+    half = np.zeros((100, 150), np.uint8)
+    half[:, :75] = 255
+    cv2.imwrite(str(tmp_path / "half.png"), half)
+    rt.activate(Content(tmp_path / "red.png", tmp_path / "half.png"))
+    rt.tick()
+    cmap = rt.item.content_map
+    assert cmap is not None and cmap.values.shape == (200, 300)
+    assert cmap.values[:, :140].min() == 1.0 and cmap.values[:, 160:].max() == 0.0
 
 
 def test_a_device_that_fails_is_reported_and_opened_again() -> None:
@@ -266,7 +239,7 @@ def test_a_device_that_fails_is_reported_and_opened_again() -> None:
             raise DeviceError("the OAK-D is not there")
         return lambda: "frame"
 
-    out: queue.Queue[tuple[str, object]] = queue.Queue()
+    out: queue.Queue[object] = queue.Queue()
     stop = threading.Event()
     clock = VirtualClock()
     t = threading.Thread(target=_pump, args=(_Source("depth", open_depth), out, stop, clock, 1.0))
@@ -274,8 +247,8 @@ def test_a_device_that_fails_is_reported_and_opened_again() -> None:
     first, second = out.get(timeout=5), out.get(timeout=5)
     stop.set()
     t.join(timeout=5)
-    assert first == ("depth-error", "the OAK-D is not there")
-    assert second == ("depth", "frame") and clock.now_ns() >= 1_000_000_000
+    assert first == SourceFault("depth", "the OAK-D is not there")
+    assert second == "frame" and clock.now_ns() >= 1_000_000_000
 
 
 def test_run_without_the_hardware_is_a_one_line_error(capsys: pytest.CaptureFixture[str]) -> None:

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from adaproj_edge.cli import main
+from adaproj_edge.content.overlay import FACE_COLOUR
 from tests.content.displays import colour_popout
+from tests.content.facescenes import astronaut, region_ratio
 
 
 @pytest.fixture
@@ -71,3 +73,26 @@ def test_a_missing_model_is_a_clear_error(
     )
     assert rc == 2
     assert "saliency model not found" in capsys.readouterr().err
+
+
+def test_faces_are_in_the_map_and_drawn_in_the_overlay(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    scene = astronaut()
+    assert scene.face is not None
+    src = tmp_path / "astronaut.png"
+    cv2.imwrite(str(src), scene.image)
+    out, over = tmp_path / "map.png", tmp_path / "over.png"
+    assert main(["saliency", str(src), "--out", str(out), "--overlay", str(over)]) == 0
+    assert "1 face(s)" in capsys.readouterr().out
+    x, y, w, h = scene.face
+    cmap = cv2.imread(str(out), cv2.IMREAD_UNCHANGED).astype(np.float64) / 255.0
+    assert region_ratio(cmap, scene.face) >= 1.5
+    magenta = np.all(cv2.imread(str(over)) == FACE_COLOUR, axis=2)
+    ys, xs = np.nonzero(magenta)
+    assert len(xs) > 100 and x < xs.mean() < x + w and y < ys.mean() < y + h
+    plain = tmp_path / "plain.png"
+    assert main(["saliency", str(src), "--out", str(plain), "--no-faces"]) == 0
+    assert "face(s)" not in capsys.readouterr().out
+    values = cv2.imread(str(plain), cv2.IMREAD_UNCHANGED).astype(np.float64) / 255.0
+    assert region_ratio(values, scene.face) < 1.0

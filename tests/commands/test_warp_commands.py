@@ -46,7 +46,7 @@ def test_warp_writes_the_warp_and_the_frame(
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--surface", "nope.npz"], "surface file not found"),
+        (["--surface", "nope.npz"], "neither a file nor a built-in surface"),
         (["--image", "nope.png"], "image not found"),
         (["--image", "{d}/s.npz"], "not a readable image"),
         (["--mask", "{d}/tall.png"], "aspect"),

@@ -16,7 +16,8 @@ from adaproj_edge.content.contentmap import content_map_for
 from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.geometry.analytic import NON_DEVELOPABLE, get_surface, simulate_surface
 from adaproj_edge.render.maps import map_from_warp
-from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.planner import compute_warp
 from tests.distortion import in_mask, measure
 
 

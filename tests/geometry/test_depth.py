@@ -7,13 +7,9 @@ import pytest
 
 from adaproj_edge.geometry.analytic import Plane, get_surface
 from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.geometry.depth import (
-    SurfaceFilter,
-    dense_shape,
-    estimate_surface,
-    fill_holes,
-    reject_spikes,
-)
+from adaproj_edge.geometry.depth.estimate import estimate_surface
+from adaproj_edge.geometry.depth.lattice import dense_shape, fill_holes, reject_spikes
+from adaproj_edge.geometry.depth.temporal import SurfaceFilter
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.simulator import Scene, true_surface
 
@@ -152,12 +148,14 @@ def test_surface_names_exist() -> None:
 
 
 def test_smooth_lattice_keeps_planes_and_creases_and_removes_noise() -> None:
-    from adaproj_edge.geometry.depth import smooth_lattice
+    from adaproj_edge.geometry.depth.fits import smooth_lattice
 
     rows, cols = 40, 60
     v, u = np.mgrid[0:rows, 0:cols].astype(float)
     plane = 1.0 / (0.6 + 0.002 * u - 0.001 * v)  # inverse depth affine: a plane
-    assert np.allclose(smooth_lattice(plane, 2.0), plane, rtol=1e-9)
+    # small least-squares fits: a plane comes back up to rounding (cond x eps, which
+    # differs between CPUs; 3.4e-9 seen), 1e-6 of 1.5 m is 1.5 um
+    assert np.allclose(smooth_lattice(plane, 2.0), plane, rtol=1e-6, atol=0.0)
     crease = 1.5 - 0.01 * np.abs(u - 30.4)  # a V seen from inside a corner
     out = smooth_lattice(crease, 2.0)
     assert np.abs(out - crease).max() < 0.004

@@ -20,7 +20,8 @@ from adaproj_edge.session.hand import HandMotion
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate, true_surface
 from adaproj_edge.session.track import track_surface
-from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.planner import compute_warp
 from tests.distortion import Distortion, measure
 
 CAL = Calibration.default()

@@ -8,7 +8,7 @@ import pytest
 
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.analytic import Corner, get_surface, ray_cast
-from adaproj_edge.geometry.depth import lattice_uv
+from adaproj_edge.geometry.depth.lattice import lattice_uv
 from adaproj_edge.geometry.planes import curvature_ratio, find_planes, snap_planes
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface

@@ -1,14 +1,17 @@
 """Malformed input for the link, shared by the test suite and ``tools/fuzz_link.py``.
 
-Two targets:
+Three targets:
 
 - :func:`wire_target`: a byte stream (valid frames of bad messages, mutated frames,
   noise) through the frame decoder and the dispatcher, replies encoded back.
 - :func:`dispatch_target`: one message (header + body) straight into the dispatcher.
+- :func:`resync_target`: junk (stray partial frames, cut lines, noise), then one
+  intact frame of a good request: the decoder must find it and the server answer it.
 
 Each returns what happened, and raises ``AssertionError`` if a guarantee breaks: the
 server raised, a reply is not a well-formed answer to its request, a bad request got
-an internal error, or the decoder holds more than its bounds.
+an internal error, the decoder holds more than its bounds, or a good frame after junk
+is lost.
 """
 
 from __future__ import annotations
@@ -150,6 +153,38 @@ def streams(draw: st.DrawFn) -> list[bytes]:
     return [wire[i : i + step] for i in range(0, len(wire), step)]
 
 
+_B64 = st.binary(max_size=80).map(lambda b: base64.b64encode(b)[: len(b)])
+
+
+@st.composite
+def junk(draw: st.DrawFn) -> bytes:
+    """What a line may carry before a good frame: each piece cut anywhere, no newline
+    needed between them."""
+    parts: list[bytes] = []
+    for _ in range(draw(st.integers(1, 4))):
+        kind = draw(st.integers(0, 3))
+        if kind == 0:
+            parts.append(draw(st.binary(max_size=200)))
+        elif kind == 1:
+            parts.append(draw(st.sampled_from([START, CONTINUE])) + draw(_B64))
+        elif kind == 2:
+            frame = encode_frame(draw(messages()), draw(st.integers(8, 200)))
+            parts.append(frame[: draw(st.integers(0, len(frame)))])
+        else:
+            parts.append(b"\r\n" * draw(st.integers(0, 2)) + draw(_B64) + b"\n")
+    return b"".join(parts)
+
+
+@st.composite
+def resyncs(draw: st.DrawFn) -> tuple[list[bytes], bytes]:
+    """(wire chunks, the good request at their end): junk, then an intact echo frame."""
+    body = cbor2.dumps({"d": draw(st.text(max_size=40))})
+    message = HEADER.pack(2, 0, len(body), 0, draw(st.integers(0, 255)), 0) + body
+    wire = draw(junk()) + encode_frame(message, draw(st.integers(8, 200)))
+    step = draw(st.integers(1, max(1, len(wire))))
+    return [wire[i : i + step] for i in range(0, len(wire), step)], message
+
+
 def check_reply(message: bytes, reply: bytes | None, seen: Counter[str]) -> None:
     """Assert ``reply`` is a proper answer to ``message`` (or that ignoring it was right)."""
     if reply is None:
@@ -185,3 +220,19 @@ def wire_target(
                 encode_frame(reply)
     assert len(decoder._line) <= MAX_LINE
     assert decoder._frame is None or len(decoder._frame) <= decoder.max_message + 4
+
+
+def resync_target(
+    server: Server, decoder: FrameDecoder, case: tuple[list[bytes], bytes], seen: Counter[str]
+) -> None:
+    """Feed junk then a good frame; the good frame must be the last message decoded."""
+    chunks, good = case
+    last: bytes | None = None
+    for chunk in chunks:
+        for message in decoder.feed(chunk):
+            reply = server.handle(message)
+            check_reply(message, reply, seen)
+            last = message
+    assert last == good, "the intact frame after the junk was lost"
+    seen["resynchronised"] += 1
+    assert len(decoder._line) <= MAX_LINE

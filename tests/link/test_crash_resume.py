@@ -24,6 +24,7 @@ from typing import IO
 from adaproj_edge.errors import LinkError
 from adaproj_edge.hal.serial import PtyPair
 from adaproj_edge.link import client
+from adaproj_edge.link.host_requests import ActivateWrite, StatusRead
 from tests.link.media import png_bytes
 
 LINK_COMMAND = (sys.executable, "-m", "adaproj_edge.cli", "link")
@@ -107,13 +108,13 @@ def committed(store: Path) -> dict[str, bytes]:
 
 async def _upload(port: str, data: bytes, name: str, on_progress: client.Progress) -> int:
     async with client.connect(port, timeout_s=1.0) as c:
-        return await client.upload(c, data, name, on_progress, timeout_s=1.0)
+        return await client.upload(c, data, name, on_progress, timeout_s=1.0, tries=1)
 
 
 async def _resume_and_check(port: str, data: bytes, name: str) -> tuple[int, dict[str, object]]:
     async with client.connect(port, timeout_s=5.0) as c:
         start = await client.upload(c, data, name)
-        status = await client.call(c, client.StatusRead())
+        status = await client.call(c, StatusRead())
         return start, status.device
 
 
@@ -129,7 +130,7 @@ def run_campaign(uploads: int, root: Path, seed: int = 1) -> Counter[str]:
         link.start()
         try:
             asyncio.run(_resume_and_check(pty.path, shown, "shown.png"))
-            with_activate = client.ActivateWrite(image="shown.png")
+            with_activate = ActivateWrite(image="shown.png")
 
             async def activate() -> None:
                 async with client.connect(pty.path) as c:

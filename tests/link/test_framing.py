@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import logging
 import os
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from smp.packet import encode
@@ -94,3 +96,68 @@ def test_arbitrary_bytes_never_raise_and_memory_is_bounded(parts: list[bytes]) -
             assert len(m) <= 512
     assert len(d._line) <= 4096
     assert d._frame is None or len(d._frame) <= 512 + 4 + 3
+
+
+def test_a_stray_partial_frame_costs_only_itself() -> None:
+    d = FrameDecoder(4096)
+    m = b"\x02\x00\x00\x00\x00\x00\x00\x06"
+    assert feed_all(d, START + b"AAAAB" + encode_frame(m)) == [m]  # no newline before it
+    assert feed_all(d, b"noise" + START + b"QUJD" + CONTINUE + encode_frame(m)) == [m]
+    assert sum(d.stats.dropped.values()) == 2
+
+
+def test_a_lost_newline_inside_a_frame_loses_nothing() -> None:
+    d = FrameDecoder(4096)
+    m = os.urandom(300)
+    wire = encode_frame(m, line_length=64)
+    assert wire.count(b"\n") > 3
+    joined = wire.replace(b"\n", b"", 2)  # two lines run into the next ones
+    assert feed_all(d, joined, step=5) == [m]
+    assert d.stats.dropped == {}
+
+
+def test_a_delimiter_split_between_reads_is_found() -> None:
+    d = FrameDecoder(1024)
+    m = b"abcdefgh"
+    wire = START + b"AAAAB" + encode_frame(m)
+    cut = wire.index(START, 1) + 1  # between the 06 and the 09 of the real frame start
+    assert feed_all(d, wire[:cut]) + feed_all(d, wire[cut:]) == [m]
+
+
+def test_garbage_longer_than_a_line_then_a_frame() -> None:
+    d = FrameDecoder(1024)
+    m = b"abcdefgh"
+    assert feed_all(d, START + b"A" * 9000 + b"\x06" + encode_frame(m), step=1000) == [m]
+    assert len(d._line) <= 4096
+
+
+def test_a_burst_of_bad_frames_is_logged_once_and_summarised(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    d = FrameDecoder(1024)
+    bad = START + b"AAAAB\n"
+    with caplog.at_level(logging.WARNING, logger="adaproj_edge.link.framing"):
+        for _ in range(50):
+            assert feed_all(d, bad) == []
+        assert feed_all(d, encode_frame(b"abcdefgh")) == [b"abcdefgh"]
+        assert feed_all(d, bad) == []
+    warned = [r.getMessage() for r in caplog.records]
+    assert len(warned) == 3 + 1 + 1  # the first three, the summary, the next burst's first
+    assert warned[3] == "50 bad SMP frames dropped before this good one: bad base64 50"
+    assert d.stats.dropped == {"bad base64": 51}
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    junk=st.binary(max_size=600),
+    message=st.binary(max_size=600),
+    step=st.integers(1, 200),
+    line_length=st.integers(8, 300),
+)
+def test_any_junk_then_a_frame_gives_the_frame(
+    junk: bytes, message: bytes, step: int, line_length: int
+) -> None:
+    """Resynchronisation: whatever came before, an intact frame after it gets through."""
+    d = FrameDecoder(1024)
+    out = feed_all(d, junk + encode_frame(message, line_length), step)
+    assert out and out[-1] == message

@@ -14,7 +14,14 @@ from adaproj_edge.link.device import StandaloneDevice
 from adaproj_edge.link.framing import FrameDecoder
 from adaproj_edge.link.server import Server
 from adaproj_edge.link.store import ContentStore, Limits
-from tests.link.fuzz_cases import dispatch_target, messages, streams, wire_target
+from tests.link.fuzz_cases import (
+    dispatch_target,
+    messages,
+    resync_target,
+    resyncs,
+    streams,
+    wire_target,
+)
 
 FUZZ = settings(
     max_examples=1000,
@@ -54,3 +61,17 @@ def test_wire_stream_never_breaks_the_server(tmp_path: Path) -> None:
 
     run()
     assert seen["error"] > 0
+
+
+def test_after_any_junk_the_next_good_frame_is_answered(tmp_path: Path) -> None:
+    server = make_server(tmp_path / "store")
+    decoder = FrameDecoder(server.max_message)  # one decoder: each case follows the last
+    seen: Counter[str] = Counter()
+
+    @FUZZ
+    @given(resyncs())
+    def run(case: tuple[list[bytes], bytes]) -> None:
+        resync_target(server, decoder, case, seen)
+
+    run()
+    assert seen["resynchronised"] >= 1000 and sum(decoder.stats.dropped.values()) > 0

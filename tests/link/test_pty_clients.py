@@ -13,12 +13,20 @@ from pathlib import Path
 import cbor2
 import pytest
 from smp import os_management as smpos
+from smpclient.requests.file_management import FileHashChecksum
 
 from adaproj_edge import cli
 from adaproj_edge.errors import LinkError
 from adaproj_edge.hal.serial import FdPort, PtyPair
 from adaproj_edge.link import client
 from adaproj_edge.link.framing import FrameDecoder, encode_frame
+from adaproj_edge.link.host_requests import (
+    ActivateWrite,
+    DeleteWrite,
+    ListRead,
+    StatusRead,
+    UploadStateRead,
+)
 from tests.link.conftest import Running
 from tests.link.media import png_bytes
 
@@ -70,25 +78,25 @@ def test_smpclient_drives_every_adaproj_command(running: Running) -> None:
             assert await client.upload(c, image, "wall.png", lambda d, t: seen.append(d)) == 0
             assert seen[-1] == len(image) and len(seen) > 3  # chunks of the 4 KiB buffer
             await client.upload(c, mask, "wall-mask.png")
-            listed = await client.call(c, client.ListRead())
+            listed = await client.call(c, ListRead())
             assert {i["name"] for i in listed.items} == {"wall.png", "wall-mask.png"}
             settings = {"mode": "conformal", "threshold": 0.3}
-            act = client.ActivateWrite(image="wall.png", mask="wall-mask.png", settings=settings)
+            act = ActivateWrite(image="wall.png", mask="wall-mask.png", settings=settings)
             assert (await client.call(c, act)).active["settings"] == settings
-            status = await client.call(c, client.StatusRead())
+            status = await client.call(c, StatusRead())
             assert status.device["state"] == "showing" and status.device["image"] == "wall.png"
             assert {"coverage", "warp", "errors"} <= set(status.device)
             assert status.store["items"] == 2 and status.link["requests"] > 0
             png = await client.download_screenshot(c)
             assert png.startswith(b"\x89PNG") and len(png) > 4096  # came in several chunks
-            state = await client.call(c, client.UploadStateRead(name="wall.png"))
+            state = await client.call(c, UploadStateRead(name="wall.png"))
             assert (state.off, state.len) == (0, 0)
             with pytest.raises(LinkError, match="being shown"):
-                await client.call(c, client.DeleteWrite(name="wall.png"))
-            await client.call(c, client.ActivateWrite(image="wall-mask.png"))
-            await client.call(c, client.DeleteWrite(name="wall.png"))
+                await client.call(c, DeleteWrite(name="wall.png"))
+            await client.call(c, ActivateWrite(image="wall-mask.png"))
+            await client.call(c, DeleteWrite(name="wall.png"))
             with pytest.raises(LinkError, match="ENOENT"):
-                await client.call(c, client.ActivateWrite(image="wall.png"))
+                await client.call(c, ActivateWrite(image="wall.png"))
 
     asyncio.run(go())
 
@@ -165,7 +173,7 @@ def test_upload_sha_matches(running: Running) -> None:
     async def go() -> bytes:
         async with client.connect(running.pty.path) as c:
             await client.upload(c, data, "h.png")
-            r = await client.call(c, client.FileHashChecksum(name="h.png", type="sha256"))
+            r = await client.call(c, FileHashChecksum(name="h.png", type="sha256"))
             return bytes(r.output)
 
     assert asyncio.run(go()) == hashlib.sha256(data).digest()

@@ -2,16 +2,19 @@
 
 from __future__ import annotations
 
+import logging
 import struct
 from typing import Any
 
 import cbor2
+import pytest
 from smp import file_management as smpfs
 from smp import os_management as smpos
 from smp.error import MGMT_ERR
 from smp.file_management import FS_MGMT_ERR
 
-from adaproj_edge.link.client import (
+from adaproj_edge.link.framing import START
+from adaproj_edge.link.host_requests import (
     ActivateWrite,
     DeleteWrite,
     ListRead,
@@ -176,3 +179,43 @@ def test_a_reply_too_big_for_a_frame_is_an_error(server: Server) -> None:
 
     server.device = Chatty()  # type: ignore[assignment]
     assert ask(server, StatusRead())["rc"] == MGMT_ERR.EMSGSIZE
+
+
+def test_resume_probes_are_neither_errors_nor_warnings(
+    server: Server, caplog: pytest.LogCaptureFixture
+) -> None:
+    data = png_bytes(50, 40)
+    with caplog.at_level(logging.DEBUG, logger="adaproj_edge.link"):
+        ask(server, smpfs.FileStatusRequest(name="/p.png"))  # not there yet
+        ask(server, smpfs.FileHashChecksumRequest(name="/p.png", type="sha256"))
+        ask(server, smpfs.FileUploadRequest(name="p.png", off=0, data=data[:100], len=len(data)))
+        moved = ask(server, smpfs.FileUploadRequest(name="p.png", off=300, data=data[300:]))
+        assert moved["len"] == 100  # where to go on
+    assert server.counters["probes"] == 3 and server.counters["errors"] == 0
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+
+    caplog.clear()
+    assert ask(server, ActivateWrite(image="nothing.png"))["rc"] == MGMT_ERR.ENOENT
+    assert server.counters["errors"] == 1
+    warned = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(warned) == 1 and "nothing.png" in warned[0]
+
+
+def test_a_flood_of_refusals_is_summarised(
+    server: Server, caplog: pytest.LogCaptureFixture
+) -> None:
+    with caplog.at_level(logging.WARNING, logger="adaproj_edge.link"):
+        for i in range(40):
+            answer(server, raw(2, 0, 0, cbor2.dumps({"d": i})))  # echo of a number: refused
+        assert ask(server, smpos.EchoWriteRequest(d="ok")) == {"r": "ok"}
+    warned = [r.getMessage() for r in caplog.records]
+    assert len(warned) == 4  # the first three, then one summary at the next success
+    assert warned[-1].startswith("40 requests refused before this good one")
+    assert server.counters["errors"] == 40
+
+
+def test_status_counts_the_frames_dropped(server: Server) -> None:
+    assert list(server.decoder.feed(START + b"AAAAB\n")) == []
+    link = ask(server, StatusRead())["link"]
+    assert link["frames_dropped"] == {"bad base64": 1}
+    assert set(link) == {"requests", "errors", "ignored", "probes", "frames_dropped"}

@@ -1,4 +1,4 @@
-"""The content store: names, quota, image checks, offsets, atomic commit."""
+"""The content store: names, quota, image and clip checks, offsets, atomic commit."""
 
 from __future__ import annotations
 
@@ -6,14 +6,17 @@ from pathlib import Path
 
 import pytest
 
+from adaproj_edge.content.video import VideoLimits
 from adaproj_edge.errors import (
     ContentError,
     ContentNotFoundError,
     ImageError,
     QuotaError,
     UploadOffsetError,
+    VideoError,
 )
 from adaproj_edge.link.store import ActiveRecord, ContentStore, Limits, check_name
+from tests.content.clips import H264, write_clip
 from tests.link.media import jpeg_bytes, png_bomb, png_bytes
 
 
@@ -217,3 +220,103 @@ def test_append_at_the_end_commits(store: ContentStore) -> None:
         f.write(data[50:])
     assert store.append("p.png", len(data), b"") == len(data)
     assert (store.root / "p.png").read_bytes() == data
+
+
+# ---- video clips -------------------------------------------------------------------
+
+
+def clip_bytes(
+    tmp_path: Path, name: str, fourcc: str, n: int = 20, size: tuple[int, int] = (160, 96)
+) -> bytes:
+    return write_clip(tmp_path / name, fourcc, n=n, size=size, fps=20).read_bytes()
+
+
+def upload(store: ContentStore, name: str, data: bytes, chunk: int = 4000) -> None:
+    store.begin(name, len(data), data[:chunk])
+    for off in range(chunk, len(data), chunk):
+        store.append(name, off, data[off : off + chunk])
+
+
+@pytest.mark.parametrize(
+    ("name", "fourcc"), [("c.avi", "MJPG"), ("c.mp4", "mp4v"), ("c.mkv", "MJPG")]
+)
+def test_clips_accepted_and_listed_with_duration(
+    store: ContentStore, tmp_path: Path, name: str, fourcc: str
+) -> None:
+    data = clip_bytes(tmp_path, name, fourcc)
+    upload(store, name, data)
+    assert (store.root / name).read_bytes() == data
+    [item] = store.items()
+    assert (item.kind, item.width, item.height, item.duration) == ("video", 160, 96, 1.0)
+
+
+def test_h264_clip_accepted(store: ContentStore) -> None:
+    upload(store, "h.mp4", H264.read_bytes())
+    assert store.items()[0].duration == 1.0 and store.items()[0].kind == "video"
+    assert store.items()[0].width == 320
+
+
+def test_image_items_have_no_duration(store: ContentStore) -> None:
+    data = png_bytes(40, 30)
+    upload(store, "p.png", data)
+    assert store.items()[0].duration is None and store.items()[0].kind == "image"
+
+
+@pytest.mark.parametrize(
+    ("case", "message"),
+    [
+        ("truncated", "truncated or corrupt"),
+        ("codec", "ffv1 codec"),
+        ("long", "longer than the 0.5 s"),
+        ("large", "a clip may be at most 100 px"),
+        ("empty", "no frames|cannot be opened"),
+    ],
+)
+def test_bad_clips_refused_at_commit_and_nothing_left(
+    tmp_path: Path, case: str, message: str
+) -> None:
+    video = VideoLimits(max_duration=0.5) if case == "long" else VideoLimits()
+    if case == "large":
+        video = VideoLimits(max_side=100)
+    store = ContentStore(tmp_path / "s", Limits(video=video))
+    good = clip_bytes(tmp_path, "good.avi", "MJPG", n=8, size=(64, 48))
+    upload(store, "show.avi", good)
+    store.set_active(ActiveRecord("show.avi"))
+    data = {
+        "truncated": clip_bytes(tmp_path, "c.avi", "MJPG")[:-3000],
+        "codec": clip_bytes(tmp_path, "f.mkv", "FFV1"),
+        "long": clip_bytes(tmp_path, "l.avi", "MJPG"),
+        "large": clip_bytes(tmp_path, "b.avi", "MJPG"),
+        "empty": clip_bytes(tmp_path, "e.avi", "MJPG", n=0),
+    }[case]
+    name = "f.mkv" if case == "codec" else "show.avi"
+    with pytest.raises(VideoError, match=message):
+        upload(store, name, data)
+    assert files(store.root) == [".active.json", "show.avi"]
+    assert (store.root / "show.avi").read_bytes() == good
+    assert store.active() == ActiveRecord("show.avi")
+
+
+@pytest.mark.parametrize(
+    ("name", "head", "message"),
+    [
+        ("x.mp4", b"RIFF\x00\x00\x00\x00AVI LIST" + b"\x00" * 20, r"named \.mp4 but holds an AVI"),
+        ("x.mkv", b"#EXTM3U\nhttp://example.invalid/a.ts\n" + b"\x00" * 8, "not an MP4"),
+        ("x.avi", b"\x89PNG\r\n\x1a\n" + b"\x00" * 30, "not an MP4"),
+    ],
+)
+def test_clip_heads_refused_before_writing(
+    store: ContentStore, name: str, head: bytes, message: str
+) -> None:
+    before = files(store.root)
+    with pytest.raises(VideoError, match=message):
+        store.begin(name, 100_000, head)
+    assert files(store.root) == before
+
+
+def test_clip_names(store: ContentStore) -> None:
+    assert check_name("/Film_1.MP4") == "Film_1.MP4"
+    assert check_name("a.mkv") == "a.mkv" and check_name("a.avi") == "a.avi"
+    for bad in ("a.mov", "a.webm", "a.m3u8"):
+        with pytest.raises(ContentError, match="not allowed"):
+            check_name(bad)

@@ -11,7 +11,8 @@ from adaproj_edge.geometry.triangles import grid_triangles
 from adaproj_edge.render.folds import fold_mask, guard
 from adaproj_edge.render.maps import PixelWeights
 from adaproj_edge.render.seams import grid_neighbours
-from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.warpmap import Grid
 
 

@@ -6,7 +6,8 @@ import numpy as np
 
 from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.render.maps import PixelWeights, map_from_warp
-from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.warpmap import Grid
 
 
@@ -19,7 +20,7 @@ def test_weights_of_a_pose_map_any_warp_of_it() -> None:
     cmap[5:15, 4:12] = 1.0
     aware = compute_warp(surface, (320, 200), cmap, WarpSettings(grid=Grid(12, 8)))
     assert aware.meta["iterations"] > 0
-    for warp in (free, aware):
+    for warp in (free, aware):  # map_from_warp is PixelWeights.map: the same code, exact
         np.testing.assert_array_equal(
             weights.map(warp.image_xy, warp.content_size), map_from_warp(warp, surface)
         )

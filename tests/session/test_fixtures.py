@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from adaproj_edge.session.digest import tracking_digest
 from adaproj_edge.session.player import Replay
 from adaproj_edge.session.reader import read_session
 from adaproj_edge.session.track import track_surface
-from tests.session.golden import replay_outputs
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "sessions"
 NAMES = ["corner", "cylinder", "sphere", "mesh-sphere"]
@@ -40,7 +40,7 @@ def test_fixtures_are_small() -> None:
 @pytest.mark.parametrize("name", NAMES)
 def test_replay_matches_the_golden_outputs(name: str) -> None:
     golden = json.loads((FIXTURES / "golden.json").read_text())[name]
-    got = replay_outputs(FIXTURES / f"{name}.mcap", (21, 21))
+    got = tracking_digest(FIXTURES / f"{name}.mcap", (21, 21))
     assert len(got) == len(golden)
     for g, w in zip(got, golden, strict=True):
         assert g["t_ns"] == w["t_ns"] and g["still"] == w["still"]

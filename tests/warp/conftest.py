@@ -10,7 +10,8 @@ from numpy.typing import NDArray
 from adaproj_edge.geometry.analytic import get_surface, simulate_surface
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.maps import map_from_warp
-from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.warpmap import Warp
 from tests.distortion import Distortion, measure
 

@@ -7,8 +7,9 @@ import pytest
 
 from adaproj_edge.geometry.analytic import get_surface
 from adaproj_edge.warp.adaptive import BEND, MAX_FACTOR, MIN_SPACING, bends, refine_grid
-from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import MeshGeometry
+from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.warpmap import Grid
 from tests.warp.conftest import CONTENT, surface
 

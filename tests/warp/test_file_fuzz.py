@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.warpmap import Grid, Warp
 
 

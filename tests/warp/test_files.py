@@ -12,7 +12,8 @@ from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.maps import map_from_warp
-from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.warpmap import Grid, Warp
 
 

@@ -1,5 +1,6 @@
-"""The runtime's warp pipeline: coarse-to-fine content-aware refinement and the fast
-display maps, against analytic ground truth (tests/distortion.py) and exact fields."""
+"""The warp planner: coarse-to-fine content-aware refinement (the device's method) and
+the fast display maps, against analytic ground truth (tests/distortion.py) and exact
+fields; and compute_warp as the planner's one-shot path."""
 
 from __future__ import annotations
 
@@ -10,18 +11,15 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from adaproj_edge.app.pipeline import (
-    WarpPipeline,
-    coarse_indices,
-    fold_count,
-    upsample_field,
-)
 from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.geometry.analytic import DEVELOPABLE, NON_DEVELOPABLE, get_surface
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.render.frame import RemapMaps
 from adaproj_edge.render.maps import map_from_warp
-from adaproj_edge.warp.engine import WarpSettings, compute_warp
+from adaproj_edge.warp.coarse import coarse_indices, upsample_field
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.orientation import fold_count
+from adaproj_edge.warp.planner import PlanSettings, WarpPlanner, compute_warp
 from adaproj_edge.warp.warpmap import Grid, Warp
 from tests.distortion import Distortion, in_mask, measure, visible_fraction
 from tests.warp.conftest import CONTENT, subject_masks, surface
@@ -96,11 +94,11 @@ CONTENT_MAP_T = 0.5
 @cache
 def _pipeline_map(name: str, mask: str, factor: int) -> tuple[Warp, NDArray[np.float32]]:
     s = surface(name)
-    pipeline = WarpPipeline(s.projector, refine_factor=factor)
+    planner = WarpPlanner(s.projector, plan=PlanSettings(refine_factor=factor))
     settings = WarpSettings(mode="content", threshold=CONTENT_MAP_T)
     cmap = ContentMap(subject_masks()[mask], CONTENT, CONTENT_MAP_T)
-    cf = pipeline.content_free(s, CONTENT, settings)
-    warp, _ = pipeline.content_aware(s, cmap, settings, cf)
+    cf = planner.content_free(s, CONTENT, settings)
+    warp = planner.refine(s, cmap, settings, cf)
     return warp, map_from_warp(warp, s)
 
 
@@ -112,7 +110,9 @@ def _measured(name: str, m: NDArray[np.float32]) -> Distortion:
 def _engine(name: str, mode: str, mask: str | None) -> Distortion:
     s = surface(name)
     cmap = None if mask is None else subject_masks()[mask]
-    warp = compute_warp(s, CONTENT, cmap, WarpSettings(mode=mode, threshold=CONTENT_MAP_T))  # type: ignore[arg-type]
+    # on the device's grid (compute_warp would refine it where the surface bends)
+    settings = WarpSettings(mode=mode, threshold=CONTENT_MAP_T, adaptive=False)
+    warp = compute_warp(s, CONTENT, cmap, settings)  # type: ignore[arg-type]
     return _measured(name, map_from_warp(warp, s))
 
 
@@ -140,3 +140,32 @@ def test_coarse_refinement_stays_exact_on_developable_surfaces(name: str) -> Non
     d = _measured(name, map_xy)
     assert d.angle_mean <= 0.005 and d.size_std <= 0.005, (d.angle_mean, d.size_std)
     assert d.folds == 0 and visible_fraction(map_xy, CONTENT) >= 0.995
+
+
+@pytest.mark.parametrize("name", ["sphere-convex", "bowl"])
+def test_full_grid_planning_is_compute_warp(name: str) -> None:
+    # one path: the planner's steps on the full grid give compute_warp's warp
+    s = surface(name)
+    settings = WarpSettings(mode="content", threshold=CONTENT_MAP_T)
+    cmap = ContentMap(subject_masks()["one-left"], CONTENT, CONTENT_MAP_T)
+    planner = WarpPlanner(s.projector)
+    stepwise = planner.refine(s, cmap, settings, planner.content_free(s, CONTENT, settings))
+    once = compute_warp(s, CONTENT, cmap, settings)
+    assert once.meta["iterations"] == stepwise.meta["iterations"] > 0
+    np.testing.assert_allclose(once.image_xy, stepwise.image_xy, rtol=0, atol=1e-6)
+
+
+def test_warm_start_takes_at_most_the_warm_steps_from_the_last_solution() -> None:
+    s = surface("sphere-convex")
+    settings = WarpSettings(mode="content", threshold=CONTENT_MAP_T)
+    cmap = ContentMap(subject_masks()["one-left"], CONTENT, CONTENT_MAP_T)
+    warm = PlanSettings(refine_factor=2, warm_start=True, warm_iterations=2)
+    planner = WarpPlanner(s.projector, plan=warm)
+    cf = planner.content_free(s, CONTENT, settings)
+    first = planner.refine(s, cmap, settings, cf)
+    again = planner.refine(s, cmap, settings, cf)
+    assert first.meta["iterations"] > 2 >= again.meta["iterations"]
+    # without the kept solution it starts cold again: the first refinement, exactly
+    planner.forget()
+    cold = planner.refine(s, cmap, settings, cf)
+    np.testing.assert_allclose(cold.image_xy, first.image_xy, rtol=0, atol=1e-9)

@@ -1,65 +1,62 @@
-"""Content-free warps cached per pose, so that returning to a pose is instant.
+"""Per-pose results (content-free warps and what displays them), cached so that
+returning to a pose is instant.
 
 The key combines the device orientation (from the IMU, in ``orientation_bin_rad``
 bins) with a compact signature of the surface (the median depth of a 3x3 split of
 the lattice, in ``depth_bin_m`` bins). A key match is only a candidate: before reuse
-the cached warp's surface is compared with the current one node by node
-(:meth:`CachedWarp.matches`), so two different scenes that share a key never swap
-warps. At most ``size`` entries are kept (least recently used go first).
+the cached entry's surface is compared with the current one node by node
+(:func:`surfaces_match`), so two different scenes that share a key never swap
+warps. The cache holds any entry with a ``depth`` lattice and a ``frames`` count
+(:class:`Posed`). At most ``size`` entries are kept (least recently used go first).
 """
 
 from __future__ import annotations
 
 from collections import OrderedDict
-from dataclasses import dataclass
+from typing import Generic, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
-from adaproj_edge.render.frame import RemapMaps
-from adaproj_edge.render.maps import PixelWeights
-from adaproj_edge.warp.placement import Placement
-from adaproj_edge.warp.warpmap import Warp
 
 Key = tuple[int, ...]
 
 
-@dataclass
-class CachedWarp:
-    """A content-free warp, its display maps, and what it needs for a warm start.
+class Posed(Protocol):
+    """What the cache needs of an entry: the lattice depth (R, C) of the surface it was
+    made for (NaN where unknown) and how many depth frames were averaged into it."""
 
-    ``depth`` is the surface's lattice depth (rows, cols) it was computed from, NaN
-    where unknown; ``v``/``placement``/``verts`` the solver's positions for them;
-    ``pixels`` the reduced-resolution pixel weights of its mesh (any warp of this mesh
-    maps through them); ``maps`` the renderer's maps of the warp itself, made when it
-    is first shown (a content-aware update shows its own).
+    @property
+    def depth(self) -> FloatArray:
+        """The lattice depth (R, C)."""
+
+    @property
+    def frames(self) -> int:
+        """Depth frames averaged."""
+
+
+E = TypeVar("E", bound=Posed)
+
+
+def surfaces_match(now: FloatArray, then: FloatArray, max_rel: float, min_overlap: float) -> bool:
+    """Whether two lattice depths (R, C) are the same surface.
+
+    Valid nodes must agree (at least ``min_overlap`` of the larger valid set known in
+    both) and their median relative depth change be at most ``max_rel``. Lattices of
+    different shapes (walls snapped on one, not the other) never match. A fine lattice
+    is compared at about 21x21 of its nodes.
     """
-
-    warp: Warp
-    depth: FloatArray
-    v: FloatArray
-    placement: Placement
-    verts: NDArray[np.intp]
-    pixels: PixelWeights
-    maps: RemapMaps | None = None
-    frames: int = 1  # depth frames averaged into the surface it was made from
-
-    def matches(self, depth: FloatArray, max_rel: float, min_overlap: float) -> bool:
-        """Whether the current lattice ``depth`` is the surface this warp was made for:
-        valid nodes agree (``min_overlap``) and their median relative depth change is
-        below ``max_rel``."""
-        if depth.shape != self.depth.shape:  # e.g. walls snapped on one, not the other
-            return False
-        # a fine lattice (snapped walls) is compared at about 21x21 of its nodes
-        k = max(1, (min(depth.shape) - 1) // 20)
-        now, then = depth[::k, ::k], self.depth[::k, ::k]
-        a, b = np.isfinite(now), np.isfinite(then)
-        both = a & b
-        if both.sum() < min_overlap * max(int(a.sum()), int(b.sum()), 1):
-            return False
-        rel = np.abs(now[both] - then[both]) / then[both]
-        return bool(np.median(rel) <= max_rel)
+    if now.shape != then.shape:
+        return False
+    k = max(1, (min(now.shape) - 1) // 20)
+    now, then = now[::k, ::k], then[::k, ::k]
+    a, b = np.isfinite(now), np.isfinite(then)
+    both = a & b
+    if both.sum() < min_overlap * max(int(a.sum()), int(b.sum()), 1):
+        return False
+    rel = np.abs(now[both] - then[both]) / then[both]
+    return bool(np.median(rel) <= max_rel)
 
 
 def common_nodes(
@@ -98,12 +95,12 @@ def pose_key(
     return o + surface_signature(depth, depth_bin_m)
 
 
-class PoseCache:
-    """Bounded LRU of :class:`CachedWarp` by :func:`pose_key`."""
+class PoseCache(Generic[E]):
+    """Bounded LRU of entries by :func:`pose_key`."""
 
     def __init__(self, size: int = 8) -> None:
         self.size = size
-        self._items: OrderedDict[Key, CachedWarp] = OrderedDict()
+        self._items: OrderedDict[Key, E] = OrderedDict()
         self.hits = 0
         self.misses = 0
         self.rejected = 0
@@ -119,7 +116,7 @@ class PoseCache:
         max_rel: float = 0.01,
         min_overlap: float = 0.97,
         min_frames: int = 0,
-    ) -> CachedWarp | None:
+    ) -> E | None:
         """The entry for ``key`` if it fits the current ``depth``, else any entry that
         does (most recent first; it is filed under ``key`` from then on); counts the
         outcome.
@@ -133,7 +130,7 @@ class PoseCache:
         over (a noisier surface than the current one) but kept."""
         item = self._items.get(key)
         if item is not None and item.frames >= min_frames:
-            if item.matches(depth, max_rel, min_overlap):
+            if surfaces_match(depth, item.depth, max_rel, min_overlap):
                 self._items.move_to_end(key)
                 self.hits += 1
                 return item
@@ -141,7 +138,9 @@ class PoseCache:
             del self._items[key]
         for other in reversed(list(self._items)):
             cand = self._items[other]
-            if cand.frames >= min_frames and cand.matches(depth, max_rel, min_overlap):
+            if cand.frames >= min_frames and surfaces_match(
+                depth, cand.depth, max_rel, min_overlap
+            ):
                 del self._items[other]
                 self._items[key] = cand
                 self.hits += 1
@@ -150,7 +149,9 @@ class PoseCache:
         self.misses += 1
         return None
 
-    def put(self, key: Key, item: CachedWarp) -> None:
+    def put(self, key: Key, item: E) -> None:
+        """File ``item`` under ``key`` (the least recently used entry goes beyond
+        ``size``; a cache of size 0 keeps nothing)."""
         if self.size <= 0:
             return
         self._items[key] = item

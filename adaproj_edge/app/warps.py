@@ -1,0 +1,173 @@
+"""Where the runtime's warps and display maps come from: one warp planner
+(:class:`~adaproj_edge.warp.planner.WarpPlanner`, coarse-to-fine and warm-started), one
+display-map builder (:class:`~adaproj_edge.render.display_maps.DisplayMapBuilder`) and
+the pose cache between them.
+
+A pose's entry holds its content-free warp, the pixel weights of its mesh (every warp of
+that pose maps through them) and, once shown, the content-free warp's own maps. Lookups
+key on the IMU orientation and a depth signature, and every candidate is checked node by
+node against the current surface (:mod:`adaproj_edge.warp.posecache`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from adaproj_edge.app.settings import AppSettings
+from adaproj_edge.app.telemetry import Telemetry
+from adaproj_edge.arrays import Float32Array, FloatArray
+from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.geometry.projector import Projector
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.render.display_maps import DisplayMapBuilder
+from adaproj_edge.render.frame import RemapMaps
+from adaproj_edge.render.maps import PixelWeights
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.mesh import WarpCache
+from adaproj_edge.warp.planner import ContentFreeWarp, PlanSettings, WarpPlanner
+from adaproj_edge.warp.posecache import PoseCache, pose_key
+from adaproj_edge.warp.warpmap import Warp
+
+
+@dataclass
+class PoseEntry:
+    """What the device keeps per pose.
+
+    Attributes
+    ----------
+    content_free : ContentFreeWarp
+        The content-free warp and the solver's positions (warm starts).
+    weights : PixelWeights
+        The reduced-resolution pixel weights of its mesh.
+    frames : int
+        Depth frames averaged into the surface it was made from.
+    maps : RemapMaps or None
+        The content-free warp's own display maps, made when first shown.
+    """
+
+    content_free: ContentFreeWarp
+    weights: PixelWeights
+    frames: int
+    maps: RemapMaps | None = None
+
+    @property
+    def depth(self) -> FloatArray:
+        """The lattice depth (R, C) of the surface this entry was made for."""
+        return self.content_free.depth
+
+    @property
+    def warp(self) -> Warp:
+        """The content-free warp."""
+        return self.content_free.warp
+
+
+class WarpSource:
+    """The runtime's warps and maps.
+
+    Parameters
+    ----------
+    projector : Projector
+    settings : AppSettings
+        The grid (the content-free solve's; the refinement's is coarser), map scale,
+        refinement factor, warm starts, caching and the pose cache's tuning.
+    telemetry : Telemetry
+        Where the stage times and cache counters go.
+    """
+
+    def __init__(self, projector: Projector, settings: AppSettings, telemetry: Telemetry) -> None:
+        s = self.settings = settings
+        self.projector = projector
+        self.telemetry = telemetry
+        self.times = telemetry.times
+        self.caching = s.caching
+        plan = PlanSettings(refine_factor=s.refine_factor, warm_start=s.warm_start)
+        cache = WarpCache() if s.caching else None
+        self.planner = WarpPlanner(projector, s.grid, plan, cache)
+        self.display = DisplayMapBuilder(projector, s.grid.vertices(projector), s.map_scale)
+        self.poses: PoseCache[PoseEntry] = PoseCache(s.pose_cache_size if s.caching else 0)
+
+    def maps(self, warp: Warp) -> RemapMaps:
+        """The renderer's maps for any warp (one loaded at boot, say)."""
+        with self.times.timer("map"):
+            return self.display.maps(warp)
+
+    def plain(self, content_size: tuple[int, int]) -> tuple[Warp, RemapMaps]:
+        """The content letterboxed on the frame (no pre-warp), and its maps."""
+        warp = self.planner.standard(content_size)
+        return warp, self.maps(warp)
+
+    def pose(
+        self,
+        surface: Surface,
+        frames: int,
+        min_frames: int,
+        orientation: FloatArray,
+        content_size: tuple[int, int],
+        settings: WarpSettings,
+    ) -> tuple[PoseEntry, bool]:
+        """The pose entry of ``surface`` (averaged over ``frames`` depth frames): from
+        the cache when the pose was seen (made from at least ``min_frames`` frames),
+        else solved and cached; and whether it was a cache hit.
+
+        Parameters
+        ----------
+        surface : Surface
+        frames, min_frames : int
+        orientation : (3,) float array
+            The device's orientation (rotation vector), part of the key.
+        content_size : (w, h)
+        settings : WarpSettings
+        """
+        s = self.settings
+        depth = surface.points[..., 2].astype(np.float64)
+        key = pose_key(orientation, depth, s.orientation_bin_rad, s.depth_bin_m) + content_size
+        t_lookup = time.perf_counter()
+        entry = (
+            self.poses.get(key, depth, s.cache_match_rel, min_frames=min_frames)
+            if self.caching
+            else None
+        )
+        self.telemetry.times.add(
+            "cache_hit" if entry is not None else "cache_lookup", time.perf_counter() - t_lookup
+        )
+        hit = entry is not None
+        if entry is None:
+            self.telemetry.count("cache_misses")
+            with self.telemetry.times.timer("content_free"):
+                cf = self.planner.content_free(surface, content_size, settings)
+                entry = PoseEntry(cf, self.display.pixel_weights(cf.warp), frames)
+            self.poses.put(key, entry)
+            self.telemetry.count("content_free")
+        else:
+            self.telemetry.count("cache_hits")
+        self.telemetry.counters["cache_rejected"] = self.poses.rejected
+        return entry, hit
+
+    def content_free_maps(self, entry: PoseEntry) -> RemapMaps:
+        """The display maps of a content-free warp (made once per entry)."""
+        if entry.maps is None:
+            with self.times.timer("map"):
+                entry.maps = self.display.maps(entry.warp, entry.weights)
+        return entry.maps
+
+    def content_aware(
+        self,
+        surface: Surface,
+        content_map: ContentMap,
+        settings: WarpSettings,
+        entry: PoseEntry,
+    ) -> tuple[Warp, RemapMaps]:
+        """The content-aware refinement on ``entry``'s content-free warp (made for this
+        surface, or one within the pose cache's tolerance of it), and its maps."""
+        with self.times.timer("content_aware"):
+            warp = self.planner.refine(surface, content_map, settings, entry.content_free)
+        with self.times.timer("map"):
+            maps = self.display.maps(warp, entry.weights)
+        return warp, maps
+
+    def float_map(self, warp: Warp) -> Float32Array:
+        """What the display maps of ``warp`` draw, as floats (H, W, 2) (for scoring)."""
+        return self.display.float_map(warp)

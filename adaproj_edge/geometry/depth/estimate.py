@@ -1,0 +1,179 @@
+"""The depth -> surface pipeline as one object: :class:`SurfaceEstimator`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.arrays import BoolArray, FloatArray
+from adaproj_edge.geometry.calibration import Calibration
+from adaproj_edge.geometry.depth.fits import smooth_lattice
+from adaproj_edge.geometry.depth.images import clean_images, sampled_images, smooth_images
+from adaproj_edge.geometry.depth.lattice import (
+    fill_holes,
+    lattice_uv,
+    node_confidence,
+    node_spacing_m,
+    reject_spikes,
+    supersampling_at,
+)
+from adaproj_edge.geometry.depth.rays import intersect_images
+from adaproj_edge.geometry.depth.settings import DepthSettings
+from adaproj_edge.geometry.depth.workspace import Workspace
+from adaproj_edge.geometry.surface import Surface
+
+
+@dataclass(frozen=True)
+class SurfaceEstimate:
+    """A Surface lattice with per-node confidence.
+
+    Attributes
+    ----------
+    surface : Surface
+        Points (rows, cols, 3) in frame P, NaN where unknown.
+    confidence : (rows, cols) float32
+        In [0, 1]; 0 where there is no point.
+    filled : (rows, cols) bool
+        Nodes filled in from neighbours (a hole in the depth data).
+    frames : int
+        Depth frames averaged into this estimate.
+    """
+
+    surface: Surface
+    confidence: NDArray[np.float32]
+    filled: BoolArray
+    frames: int = 1
+
+    @property
+    def coverage(self) -> float:
+        """Fraction of lattice nodes with a point."""
+        return self.surface.valid_fraction
+
+    @property
+    def mean_confidence(self) -> float:
+        """Mean confidence over the whole lattice (unknown nodes count as 0)."""
+        return float(np.mean(self.confidence))
+
+    def summary(self) -> dict[str, float | int]:
+        return {
+            "coverage": round(self.coverage, 4),
+            "confidence": round(self.mean_confidence, 4),
+            "filled": int(self.filled.sum()),
+            "frames": self.frames,
+        }
+
+
+class SurfaceEstimator:
+    """Depth frames -> :class:`SurfaceEstimate`, the whole pipeline of
+    :mod:`adaproj_edge.geometry.depth`.
+
+    It owns its state: the scratch arrays reused from frame to frame
+    (:class:`~adaproj_edge.geometry.depth.workspace.Workspace`) and the lattice rays of
+    the shapes asked for. One estimator serves one thread.
+
+    Parameters
+    ----------
+    calibration : Calibration
+        Depth model, projector and ``T_P_D``.
+    settings : DepthSettings, optional
+    """
+
+    def __init__(self, calibration: Calibration, settings: DepthSettings | None = None) -> None:
+        self.calibration = calibration
+        self.settings = settings or DepthSettings()
+        self.work = Workspace()
+        self._rays: dict[tuple[int, int], FloatArray] = {}
+
+    def rays(self, shape: tuple[int, int]) -> FloatArray:
+        """Projector rays (rows, cols, 3) of the lattice ``shape`` (read-only, kept)."""
+        rays = self._rays.get(shape)
+        if rays is None:
+            if len(self._rays) > 16:
+                self._rays.clear()
+            p = self.calibration.projector
+            rays = p.rays(lattice_uv(p, shape))
+            rays.setflags(write=False)
+            self._rays[shape] = rays
+        return rays
+
+    def estimate(self, depth_m: FloatArray, shape: tuple[int, int] = (21, 21)) -> SurfaceEstimate:
+        """The Surface at a (rows, cols) lattice of projector rays from one depth frame.
+
+        Parameters
+        ----------
+        depth_m : (h, w) float array
+            Depth in metres in frame D (z along the optical axis), NaN or 0 = invalid.
+        shape : (rows, cols)
+            Lattice size: the warp grid's vertex count (e.g. (21, 21) for a 20x20
+            grid), or a fine lattice for a dense surface (see
+            :func:`~adaproj_edge.geometry.depth.lattice.dense_shape`).
+        """
+        p = self.calibration.projector
+        s, sup, filled = self.lattice_depths(depth_m, shape)
+        points = self.rays(shape) * s[..., None]
+        conf = node_confidence(
+            points, np.where(filled, 0.5, sup), filled, self.calibration, self.settings
+        )
+        surface = Surface(points.astype(np.float32), p, {"source": "depth"})
+        est = SurfaceEstimate(surface, conf, filled & np.isfinite(s))
+        meta = {"source": "depth", **est.summary()}
+        del meta["frames"]  # the estimate's own field, not the surface's
+        return replace(est, surface=replace(surface, meta=meta))
+
+    def lattice_depths(
+        self, depth_m: FloatArray, shape: tuple[int, int]
+    ) -> tuple[FloatArray, FloatArray, BoolArray]:
+        """Steps 1-4: the depth along each lattice ray (rows, cols) (NaN where
+        unknown), the support there and the filled nodes."""
+        cal, settings, work = self.calibration, self.settings, self.work
+        z = np.asarray(depth_m, dtype=np.float64)
+        if z.shape != (cal.depth.height, cal.depth.width):
+            z = cv2.resize(
+                np.nan_to_num(z, nan=0.0).astype(np.float32),
+                (cal.depth.width, cal.depth.height),
+                interpolation=cv2.INTER_NEAREST,
+            ).astype(np.float64)
+        ok, z32 = clean_images(z, settings, True, work)
+        smoothed = smooth_images(ok, z32, settings.smooth_sigma_px, work)
+        images = sampled_images(*smoothed, settings, work)
+        p = cal.projector
+        k = supersampling_at(p, shape, images.z_any, settings)
+        fine = ((shape[0] - 1) * k + 1, (shape[1] - 1) * k + 1)
+        s, sup = intersect_images(self.rays(fine), images, cal, settings)
+        s = reject_spikes(s, settings.spike_rel)
+        if np.isfinite(s).any():
+            spacing = node_spacing_m(p, fine, float(np.nanmedian(s)))
+            sigma = min(settings.smooth_m / spacing, settings.smooth_max_nodes)
+            s = smooth_lattice(
+                s, sigma, settings.smooth_scales, settings.smooth_accept, step=k, work=work
+            )
+        else:
+            s = s[::k, ::k]
+        s, filled = fill_holes(s, settings.max_hole_nodes)
+        return s, sup[::k, ::k], filled
+
+
+def estimate_surface(
+    depth_m: FloatArray,
+    calibration: Calibration,
+    shape: tuple[int, int] = (21, 21),
+    settings: DepthSettings | None = None,
+) -> SurfaceEstimate:
+    """The Surface at a (rows, cols) lattice of projector rays from one depth frame (a
+    one-off :class:`SurfaceEstimator`; a device keeps one).
+
+    Parameters
+    ----------
+    depth_m : (h, w) float array
+        Depth in metres in frame D (z along the optical axis), NaN or 0 = invalid.
+    calibration : Calibration
+        Depth model, projector and ``T_P_D``.
+    shape : (rows, cols)
+        Lattice size: the warp grid's vertex count (e.g. (21, 21) for a 20x20 grid),
+        or a fine lattice for a dense surface (see
+        :func:`~adaproj_edge.geometry.depth.lattice.dense_shape`).
+    """
+    return SurfaceEstimator(calibration, settings).estimate(depth_m, shape)

@@ -1,0 +1,68 @@
+"""Estimates averaged over time while the device is still."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.geometry.depth.estimate import SurfaceEstimate
+from adaproj_edge.geometry.depth.lattice import lattice_uv
+from adaproj_edge.geometry.surface import Surface
+
+
+class SurfaceFilter:
+    """Averages estimates over time while the device is still; restarts when it moves.
+
+    Per node, a running mean of the depth along the ray (so a point stays on its ray),
+    weighted by confidence; a node whose new depth jumps more than ``jump_rel`` of its
+    depth starts over. At most ``max_frames`` frames are kept in the mean.
+    """
+
+    def __init__(self, max_frames: int = 30, jump_rel: float = 0.03) -> None:
+        self.max_frames = max_frames
+        self.jump_rel = jump_rel
+        self._s: FloatArray | None = None
+        self._w: FloatArray | None = None
+        self._c: FloatArray | None = None
+        self._n = 0
+        self.current: SurfaceEstimate | None = None
+
+    def reset(self) -> None:
+        self._s = self._w = self._c = None
+        self._n = 0
+        self.current = None
+
+    def update(self, est: SurfaceEstimate, still: bool) -> SurfaceEstimate:
+        pts = est.surface.points.astype(np.float64)
+        s_new = pts[..., 2]
+        c_new = est.confidence.astype(np.float64)
+        if not still or self._s is None or self._s.shape != s_new.shape:
+            self._s, self._c = s_new.copy(), c_new.copy()
+            self._w = np.where(np.isfinite(s_new), np.maximum(c_new, 1e-3), 0.0)
+            self._n = 1
+            self.current = est
+            return est
+        assert self._w is not None and self._c is not None
+        with np.errstate(invalid="ignore"):
+            both = np.isfinite(s_new) & np.isfinite(self._s)
+            jump = both & (np.abs(s_new - self._s) > self.jump_rel * self._s)
+        w_new = np.where(np.isfinite(s_new), np.maximum(c_new, 1e-3), 0.0)
+        cap = np.max(w_new) * self.max_frames if w_new.size else 1.0
+        w_old = np.where(jump, 0.0, np.minimum(self._w, cap))
+        total = w_old + w_new
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s = np.where(
+                total > 0,
+                (np.nan_to_num(self._s) * w_old + np.nan_to_num(s_new) * w_new) / total,
+                np.nan,
+            )
+            c = np.where(total > 0, (self._c * w_old + c_new * w_new) / total, 0.0)
+        self._s, self._w, self._c = s, total, c
+        self._n = min(self._n + 1, self.max_frames)
+        dirs = est.surface.projector.rays(lattice_uv(est.surface.projector, s.shape))
+        surface = Surface(
+            (dirs * s[..., None]).astype(np.float32), est.surface.projector, dict(est.surface.meta)
+        )
+        filled = est.filled & ~np.isfinite(self._s) | (est.filled & (w_old == 0))
+        self.current = SurfaceEstimate(surface, c.astype(np.float32), filled, self._n)
+        return self.current

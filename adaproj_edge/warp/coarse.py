@@ -1,0 +1,76 @@
+"""A coarse grid inside a fine one, and fields carried from the coarse to the fine.
+
+The device refines the content-aware warp on a grid about ``factor`` times coarser than
+the content-free one; its vertices are a subset of the fine grid's, so what the coarse
+solve changes can be interpolated back onto every fine vertex
+(:func:`upsample_field`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from adaproj_edge.arrays import FloatArray, IntArray
+from adaproj_edge.geometry.triangles import grid_cells
+
+
+def coarse_indices(cells: int, factor: int) -> IntArray:
+    """Fine-grid vertex indices of a grid about ``factor`` times coarser.
+
+    Parameters
+    ----------
+    cells : int
+        Cells of the fine grid along one axis (vertices 0..cells).
+    factor : int
+        How many times coarser (1: every fine vertex).
+
+    Returns
+    -------
+    (m + 1,) int array
+        Increasing fine vertex indices, both ends included, at least 2 cells.
+    """
+    m = max(2, -(-cells // max(factor, 1)))
+    return np.unique(np.rint(np.linspace(0, cells, min(m, cells) + 1)).astype(np.intp))
+
+
+def linear_weights(coarse: IntArray, n: int) -> FloatArray:
+    """(n, len(coarse)) weights interpolating values at the ``coarse`` indices linearly
+    to every index 0..n-1."""
+    j, f = grid_cells(coarse.astype(np.float64), n)
+    W = np.zeros((n, coarse.size))
+    W[np.arange(n), j] = 1.0 - f
+    W[np.arange(n), j + 1] += f
+    return W
+
+
+def upsample_field(
+    values: FloatArray, rows: IntArray, cols: IntArray, shape: tuple[int, int]
+) -> FloatArray:
+    """Values at the coarse vertices interpolated bilinearly to every fine vertex.
+
+    Parameters
+    ----------
+    values : (r, c, k) float array
+        Values at the coarse vertices ``rows`` x ``cols``; unknown (NaN) ones take the
+        nearest known value first.
+    rows, cols : (r,), (c,) int arrays
+        The coarse vertices' fine indices (:func:`coarse_indices`).
+    shape : (R, C)
+        The fine grid's vertex counts.
+
+    Returns
+    -------
+    (R, C, k) float array
+        Zeros when no coarse value is known.
+    """
+    known = np.isfinite(values).all(axis=-1)
+    if not known.any():
+        return np.zeros((*shape, values.shape[-1]))
+    if not known.all():
+        idx = ndimage.distance_transform_edt(~known, return_distances=False, return_indices=True)
+        values = values[idx[0], idx[1]]
+    Wr = linear_weights(rows, shape[0])
+    Wc = linear_weights(cols, shape[1])
+    out: FloatArray = np.einsum("ir,rck,jc->ijk", Wr, values, Wc)
+    return out

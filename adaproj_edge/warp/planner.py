@@ -1,0 +1,524 @@
+"""The warp method, one path for every caller: surface + content map -> Warp.
+
+:class:`WarpPlanner` makes a warp in two steps that a device runs at different times:
+
+1. :meth:`~WarpPlanner.content_free`: the conformal solve, E' = E_a + lambda E_r
+   (paper eq. 7) and the content's placement, on the full grid. It depends on the
+   surface alone, so a device caches it per pose (:mod:`adaproj_edge.warp.posecache`).
+2. :meth:`~WarpPlanner.refine`: the content-aware alternation
+   (:func:`~adaproj_edge.warp.engine.refine`, or the paper's as written) started from
+   step 1's positions.
+
+Coarse to fine (``PlanSettings.refine_factor`` > 1, the device's setting)
+    Step 2 runs on a grid ``refine_factor`` times coarser whose vertices are a subset
+    of the fine grid's. What it changes — the content coordinate of each coarse vertex
+    minus the fine content-free warp's there — is interpolated bilinearly to the fine
+    vertices and added to the fine content-free warp: the surface's detail (creases)
+    comes from the fine solve, the smooth content-aware redistribution from the coarse
+    one. A result that folds a fine triangle falls back to the content-free warp.
+
+Warm starts (``PlanSettings.warm_start``)
+    The planner keeps its last coarse solution; the next refinement of (nearly) the
+    same surface starts from it and takes at most ``warm_iterations`` steps.
+
+Full grid (``refine_factor`` 1, :func:`compute_warp`)
+    The grid is first refined where the surface bends faster than it samples it
+    (``WarpSettings.adaptive``, :mod:`~adaproj_edge.warp.adaptive`); our alternation
+    starts from the conformal warp (:func:`~adaproj_edge.warp.engine.content_aware`,
+    no content-free solve needed when some but not all content is salient).
+
+Never worse than conformal
+    Every content-aware result (full grid or coarse) is checked against the conformal
+    warp on the salient region by :func:`~adaproj_edge.warp.guard.guard`; ``meta``
+    ``guard`` says what was kept and why.
+
+:func:`compute_warp` is the one-shot call (the CLI, the renderer, the replay's
+ground truth): a planner with the full-grid refinement and no state kept.
+
+Pure: no clock, no hardware; the caller times the steps.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.arrays import FloatArray, IntArray
+from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.errors import InputError
+from adaproj_edge.geometry.projector import Projector
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.warp.adaptive import refine_grid
+from adaproj_edge.warp.coarse import coarse_indices, upsample_field
+from adaproj_edge.warp.engine import (
+    FAST,
+    Backend,
+    PaperWarp,
+    WarpSettings,
+    content_aware,
+    make_warp,
+    refine,
+    refine_as_paper,
+    standard_warp,
+)
+from adaproj_edge.warp.guard import guard
+from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
+from adaproj_edge.warp.orientation import fold_count
+from adaproj_edge.warp.placement import Placement, place
+from adaproj_edge.warp.posecache import surfaces_match
+from adaproj_edge.warp.warpmap import Grid, Warp
+
+log = logging.getLogger(__name__)
+
+StepHook = Callable[[], None]
+
+
+@dataclass
+class ContentFreeWarp:
+    """Step 1's result: the content-free warp and what a refinement starts from.
+
+    Attributes
+    ----------
+    warp : Warp
+        The content-free warp on the full grid.
+    depth : (R, C) float array
+        The lattice depth of the surface it was made for (NaN where unknown).
+    v_conformal, v : (n, 2) float arrays
+        The conformal and the content-free positions of the mesh's vertices.
+    placement : Placement
+        The content's placement on ``v``.
+    verts : (n,) int array
+        The full-grid indices of the mesh's vertices.
+    conformal_placement : Placement
+        The content's placement on ``v_conformal`` (the guard's yardstick).
+    mesh : MeshGeometry
+        The full grid's mesh (what a coarse refinement is guarded on).
+    """
+
+    warp: Warp
+    depth: FloatArray
+    v_conformal: FloatArray
+    v: FloatArray
+    placement: Placement
+    verts: IntArray
+    conformal_placement: Placement
+    mesh: MeshGeometry
+
+    def matches(self, depth: FloatArray, max_rel: float, min_overlap: float) -> bool:
+        """Whether the lattice ``depth`` is (nearly) the surface this warp was made for
+        (:func:`~adaproj_edge.warp.posecache.surfaces_match`)."""
+        return surfaces_match(depth, self.depth, max_rel, min_overlap)
+
+
+@dataclass(frozen=True)
+class PlanSettings:
+    """How a planner refines.
+
+    Attributes
+    ----------
+    refine_factor : int
+        The content-aware grid is this many times coarser than the warp grid (1: the
+        full grid, as :func:`compute_warp`).
+    warm_start : bool
+        Start a refinement from the last solution when it was made for (nearly) the
+        same surface (within ``warm_rel``, median relative depth).
+    warm_rel : float
+    warm_iterations : int
+        At most this many steps from a warm start.
+    """
+
+    refine_factor: int = 1
+    warm_start: bool = False
+    warm_rel: float = 0.01
+    warm_iterations: int = 4
+
+
+@dataclass(frozen=True)
+class _Solution:
+    """A content-aware result kept for the next warm start."""
+
+    v: FloatArray
+    placement: Placement
+    verts: IntArray
+    start: ContentFreeWarp  # made for the surface of ``depth``
+    depth: FloatArray
+
+
+def _surface_depth(surface: Surface) -> FloatArray:
+    return surface.points[..., 2].astype(np.float64)
+
+
+class WarpPlanner:
+    """Makes the warps of one projector and grid; keeps solver structures (``cache``)
+    and, with warm starts, its last solution.
+
+    Parameters
+    ----------
+    projector : Projector
+        The projector frame.
+    grid : Grid, optional
+        The warp grid (default 20x20).
+    plan : PlanSettings, optional
+        Coarse-to-fine factor and warm starts (default: full grid, no state).
+    cache : WarpCache, optional
+        Mesh topologies and solver structures kept between calls.
+    backend : Backend
+        The solves (:data:`~adaproj_edge.warp.engine.FAST`, or the reference).
+    """
+
+    def __init__(
+        self,
+        projector: Projector,
+        grid: Grid | None = None,
+        plan: PlanSettings | None = None,
+        cache: WarpCache | None = None,
+        backend: Backend = FAST,
+    ) -> None:
+        self.projector = projector
+        self.grid = grid or Grid()
+        self.plan_settings = p = plan or PlanSettings()
+        self.cache = cache
+        self.backend = backend
+        self.rows = coarse_indices(self.grid.rows, p.refine_factor)
+        self.cols = coarse_indices(self.grid.cols, p.refine_factor)
+        self.coarse_grid = Grid(cols=self.cols.size - 1, rows=self.rows.size - 1)
+        self._last: _Solution | None = None
+
+    def forget(self) -> None:
+        """Drop the solution kept for warm starts."""
+        self._last = None
+
+    # ------------------------------------------------------------------ steps
+    def standard(self, content_size: tuple[int, int]) -> Warp:
+        """The content letterboxed on the frame (no pre-warp)."""
+        return standard_warp(self.projector, content_size, self.grid)
+
+    def conformal(
+        self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
+    ) -> Warp:
+        """E_a alone with uniform weights (the iLamps-style baseline)."""
+        settings = replace(settings, grid=self.grid)
+        mesh, extra = self._mesh(surface, settings)
+        v = self.backend.conformal(mesh)
+        placement = place(mesh, v, content_size, settings.up)
+        warp = make_warp(mesh, v, placement, surface, content_size, settings, 0, 0.0)
+        warp.meta.update(extra)
+        return warp
+
+    def _mesh(
+        self, surface: Surface, settings: WarpSettings
+    ) -> tuple[MeshGeometry, dict[str, Any]]:
+        """The full-grid mesh of ``surface``, refined where it bends faster than the
+        grid samples it (``settings.adaptive``, full-grid planners only: the device's
+        coarse-to-fine path keeps its grid); meta says how."""
+        surface.check_usable()
+        mesh = MeshGeometry.build(surface, self.grid, self.cache)
+        if not settings.adaptive or self.plan_settings.refine_factor > 1:
+            return mesh, {}
+        refinement = refine_grid(surface, self.grid, mesh.curved_cells)
+        if not refinement.refined:
+            return mesh, {}
+        mesh = MeshGeometry.build(surface, refinement.grid, self.cache, refinement.grid_uv)
+        return mesh, {
+            "mesh": str(refinement.grid),
+            "refined": {
+                "columns": refinement.factor_x.tolist(),
+                "rows": refinement.factor_y.tolist(),
+            },
+        }
+
+    def content_free(
+        self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
+    ) -> ContentFreeWarp:
+        """Step 1: E' = E_a + lambda E_r for ``surface`` (paper eq. 7) on the full grid,
+        placed in the content; raises :class:`~adaproj_edge.errors.WarpError` when the
+        surface cannot carry a warp."""
+        return self._content_free(surface, content_size, settings)[0]
+
+    def _content_free(
+        self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
+    ) -> tuple[ContentFreeWarp, MeshGeometry]:
+        settings = replace(settings, grid=self.grid)
+        mesh, extra = self._mesh(surface, settings)
+        v_conf = self.backend.conformal(mesh)
+        v, _ = self.backend.content_free(mesh, v_conf, settings.lam)
+        placement = place(mesh, v, content_size, settings.up)
+        warp = make_warp(mesh, v, placement, surface, content_size, settings, 0, 0.0)
+        warp.meta.update(extra)
+        depth = _surface_depth(surface)
+        # the conformal warp placed from the content-free placement (a warm start): the
+        # guard's yardstick, once per surface
+        p_conf = place(mesh, v_conf, content_size, settings.up, placement)
+        return (
+            ContentFreeWarp(warp, depth, v_conf, v, placement, mesh.verts.copy(), p_conf, mesh),
+            mesh,
+        )
+
+    def refine(
+        self,
+        surface: Surface,
+        content_map: ContentMap,
+        settings: WarpSettings,
+        start: ContentFreeWarp,
+        on_step: StepHook | None = None,
+    ) -> Warp:
+        """Step 2: the content-aware alternation on the (coarse) grid, combined with
+        the fine content-free warp ``start`` (made for this surface, or one within a
+        pose cache's tolerance of it). ``on_step`` is called after every step (a
+        caller's stopwatch)."""
+        rows, cols, grid = self._refinement_grid(start)
+        coarse_uv = start.warp.grid_uv[np.ix_(rows, cols)]
+        mesh = MeshGeometry.build(surface, grid, self.cache, coarse_uv)
+        return self._refine(mesh, _surface_depth(surface), content_map, settings, start, on_step)
+
+    def _refine(
+        self,
+        mesh: MeshGeometry,
+        depth: FloatArray,
+        content_map: ContentMap,
+        settings: WarpSettings,
+        start: ContentFreeWarp,
+        on_step: StepHook | None = None,
+    ) -> Warp:
+        """:meth:`refine` on the refinement grid's ``mesh`` of the surface of lattice
+        ``depth``."""
+        fine = start.warp
+        factor = self.plan_settings.refine_factor
+        c_rows, c_cols, grid = self._refinement_grid(start)
+        coarse_settings = replace(settings, grid=grid)
+        fine_cols = fine.grid_uv.shape[1]
+        to_fine = (c_rows[:, None] * fine_cols + c_cols[None, :]).ravel()
+        v, placement, warm = self._start(mesh, start, to_fine, depth, content_map, settings)
+        v_conf = self._on_mesh(start.v_conformal, start, to_fine, mesh.verts)
+        extra: dict[str, Any] = {}
+        if warm:
+            coarse_settings = replace(
+                coarse_settings,
+                max_iterations=min(settings.max_iterations, self.plan_settings.warm_iterations),
+            )
+        known = bool(np.isfinite(v_conf).all())
+        if settings.alternation == "paper":
+            if not known:
+                v_conf = self.backend.conformal(mesh)
+            v, its, frac = refine_as_paper(mesh, v_conf, v, placement, content_map, coarse_settings)
+        elif known and not warm and factor <= 1:
+            # our alternation from the conformal warp, guarded (engine.content_aware)
+            p_conf = start.conformal_placement
+            ours = content_aware(
+                mesh, v_conf, p_conf, content_map, coarse_settings, self.backend, on_step
+            )
+            if ours is None:  # nothing or everything salient: E' is the answer
+                its, frac = 0, float(content_map.weights(placement.apply(v)).mean())
+            else:
+                v, placement, its, frac, guarded = ours
+                extra.update(guarded)
+        else:
+            v, placement, its, frac = refine(
+                mesh, v, placement, content_map, coarse_settings, self.backend, on_step
+            )
+            if known and factor <= 1:
+                choice = guard(
+                    mesh,
+                    (v, placement),
+                    (v_conf, start.conformal_placement),
+                    content_map,
+                    settings.up,
+                )
+                v, placement, extra["guard"] = choice.v, choice.placement, choice.meta
+        if self.plan_settings.warm_start:
+            self._last = _Solution(v, placement, mesh.verts.copy(), start, depth)
+        coarse_xy = np.full((to_fine.size, 2), np.nan)
+        coarse_xy[mesh.verts] = placement.apply(v)
+        rows, cols = fine.grid_uv.shape[:2]
+        if factor <= 1:
+            image_xy = coarse_xy.reshape(rows, cols, 2)
+        else:
+            delta = (
+                coarse_xy.reshape(c_rows.size, c_cols.size, 2)
+                - fine.image_xy[np.ix_(c_rows, c_cols)]
+            )
+            image_xy = fine.image_xy + upsample_field(delta, c_rows, c_cols, (rows, cols))
+            image_xy, extra["guard"] = self._fine_guard(image_xy, start, content_map, settings)
+        meta = {
+            **fine.meta,
+            "alternation": settings.alternation,
+            "iterations": its,
+            "salient_vertex_fraction": frac,
+            **extra,
+        }
+        if factor > 1:
+            meta["refine_grid"] = str(self.coarse_grid)
+        warp = Warp(
+            fine.grid_uv, image_xy, fine.content_size, fine.projector, meta, depth=fine.depth
+        )
+        if factor > 1:
+            folds = fold_count(warp)
+            if folds:
+                log.warning(
+                    "content-aware refinement folds %d triangles; showing content-free", folds
+                )
+                meta = {**fine.meta, "refine_folds": folds}
+                return replace(fine, meta=meta)
+        return warp
+
+    def plan(
+        self,
+        surface: Surface,
+        content_size: tuple[int, int],
+        content_map: ContentMap | None,
+        settings: WarpSettings,
+    ) -> Warp:
+        """The warp of ``settings.mode`` in one call (no pose cache)."""
+        if settings.mode == "standard":
+            return self.standard(content_size)
+        if settings.mode == "conformal":
+            return self.conformal(surface, content_size, settings)
+        if settings.alternation == "paper" and self.backend.paper and content_map is not None:
+            return _paper_warp(surface, content_size, content_map, settings, self.backend.paper)
+        start, mesh = self._content_free(surface, content_size, settings)
+        if content_map is None:
+            return start.warp
+        if self.plan_settings.refine_factor > 1:
+            return self.refine(surface, content_map, settings, start)
+        # the full grid: refine on the content-free step's own mesh
+        return self._refine(mesh, start.depth, content_map, settings, start)
+
+    # ------------------------------------------------------------------ helpers
+    def _refinement_grid(self, start: ContentFreeWarp) -> tuple[IntArray, IntArray, Grid]:
+        """The refinement grid's fine rows and columns and its Grid: every fine vertex
+        of ``start``'s (maybe adaptively refined) grid, or the coarse subset."""
+        if self.plan_settings.refine_factor > 1:
+            return self.rows, self.cols, self.coarse_grid
+        rows, cols = start.warp.grid_uv.shape[:2]
+        return np.arange(rows), np.arange(cols), Grid(cols=cols - 1, rows=rows - 1)
+
+    def _fine_guard(
+        self,
+        image_xy: FloatArray,
+        start: ContentFreeWarp,
+        content_map: ContentMap,
+        settings: WarpSettings,
+    ) -> tuple[FloatArray, dict[str, Any]]:
+        """A coarse-to-fine result ``image_xy`` (R, C, 2) checked on the full grid's
+        mesh against the conformal warp (:func:`~adaproj_edge.warp.guard.guard`: what is
+        displayed, not the coarse mesh, is what must be no worse)."""
+        mesh = start.mesh
+        flat = image_xy.reshape(-1, 2)
+        as_is = Placement(0.0, 1.0, np.zeros(2))  # image_xy is in content pixels already
+        choice = guard(
+            mesh,
+            (flat[start.verts], as_is),
+            (start.v_conformal, start.conformal_placement),
+            content_map,
+            settings.up,
+        )
+        if choice.t == 1.0:
+            return image_xy, choice.meta
+        out = np.full_like(flat, np.nan)
+        out[start.verts] = choice.placement.apply(choice.v)
+        return out.reshape(image_xy.shape), choice.meta
+
+    def _on_mesh(
+        self, v_fine: FloatArray, start: ContentFreeWarp, to_fine: IntArray, verts: IntArray
+    ) -> FloatArray:
+        """Fine positions ``v_fine`` (of ``start.verts``) at the vertices ``verts`` of a
+        coarse mesh (NaN where the fine mesh has none)."""
+        n_fine = start.warp.grid_uv.shape[0] * start.warp.grid_uv.shape[1]
+        full = np.full((n_fine, 2), np.nan)
+        full[start.verts] = v_fine
+        out: FloatArray = full[to_fine][verts]
+        return out
+
+    def _start(
+        self,
+        mesh: MeshGeometry,
+        start: ContentFreeWarp,
+        to_fine: IntArray,
+        depth: FloatArray,
+        content_map: ContentMap,
+        settings: WarpSettings,
+    ) -> tuple[FloatArray, Placement, bool]:
+        """Where the alternation starts: the last solution (warm), the content-free
+        positions at the coarse vertices, or (where those miss) a fresh solve."""
+        last = self._last
+        if (
+            self.plan_settings.warm_start
+            and last is not None
+            and np.array_equal(last.verts, mesh.verts)
+            and surfaces_match(depth, last.depth, self.plan_settings.warm_rel, 0.97)
+        ):
+            return last.v, last.placement, True  # near the answer already
+        v0 = self._on_mesh(start.v, start, to_fine, mesh.verts)
+        if np.isfinite(v0).all():
+            return v0, start.placement, False
+        v, _ = self.backend.content_free(mesh, self.backend.conformal(mesh), settings.lam)
+        return v, place(mesh, v, content_map.content_size, settings.up), False
+
+
+def _paper_warp(
+    surface: Surface,
+    content_size: tuple[int, int],
+    content_map: ContentMap,
+    settings: WarpSettings,
+    paper: PaperWarp,
+) -> Warp:
+    """The whole ``alternation="paper"`` warp made by a backend's own ``paper``."""
+    image_xy, meta = paper(surface, content_size, content_map, settings)
+    grid_uv = settings.grid.vertices(surface.projector)
+    rows, cols = grid_uv.shape[:2]
+    return Warp(
+        grid_uv,
+        image_xy.reshape(rows, cols, 2),
+        content_size,
+        surface.projector,
+        {"mode": "content", "alternation": "paper", "grid": str(settings.grid), **meta},
+    )
+
+
+def compute_warp(
+    surface: Surface,
+    content_size: tuple[int, int],
+    content_map: ContentMap | NDArray[np.floating] | None = None,
+    settings: WarpSettings | None = None,
+    backend: Backend = FAST,
+    cache: WarpCache | None = None,
+) -> Warp:
+    """The warp for ``surface`` and content of ``content_size`` (w, h) pixels.
+
+    Parameters
+    ----------
+    surface : Surface
+        Projector-space point map (any lattice resolution).
+    content_size : (w, h)
+    content_map : ContentMap or (h', w') float array in [0, 1], optional
+        The content map C (saliency max user mask) over the whole content, at any
+        resolution; None means uniform. Vertices are salient where C >= threshold.
+    settings : WarpSettings, optional
+    backend : Backend
+        The solves (the fast ones, or the reference for comparison).
+    cache : WarpCache, optional
+        Keeps the mesh topology and solver structures between calls (a scene seen
+        again skips that set-up).
+
+    Returns
+    -------
+    Warp
+        ``meta`` holds the mode, grid, iterations and salient vertex fraction.
+    """
+    settings = settings or WarpSettings()
+    w, h = content_size
+    if w < 2 or h < 2:
+        raise InputError(f"content size {w}x{h} is too small")
+    cmap: ContentMap | None = None
+    if content_map is not None and settings.mode == "content":
+        values = content_map.values if isinstance(content_map, ContentMap) else content_map
+        if np.ndim(values) != 2:
+            raise InputError(f"content map must be a 2D array, got shape {np.shape(values)}")
+        cmap = ContentMap(np.asarray(values, np.float32), content_size, settings.threshold)
+    planner = WarpPlanner(surface.projector, settings.grid, PlanSettings(), cache, backend)
+    return planner.plan(surface, content_size, cmap, settings)

@@ -1,0 +1,168 @@
+"""The product installs anywhere (issue 10) and a fresh checkout's first run says what
+it does (issue 12, item 9).
+
+- The wheel built from the checkout, installed with the ``device`` extra into a fresh
+  virtual environment outside the checkout (no system site-packages), runs the built-in
+  replay, a warp, a content map and the runtime's start-up checks, from a folder
+  outside the checkout: everything it needs is declared and shipped.
+- ``tools/adaproj`` on a fresh machine creates the environment with a line per stage,
+  pip's own progress and the time it took, and no setuptools warnings.
+
+Both install real packages (from pip's cache when it has them), so both are slow.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from adaproj_edge.content.builtin import poster
+from adaproj_edge.fileio import write_png
+
+REPO = Path(__file__).resolve().parents[2]
+SETUPTOOLS_WARNINGS = ("SetuptoolsDeprecationWarning", "SetuptoolsWarning", "!!\n")
+SKIP_IN_COPY = shutil.ignore_patterns(
+    ".git", ".venv", "build", "dist", "*.egg-info", "__pycache__", ".*_cache", ".hypothesis"
+)
+
+
+def clean_env(**extra: str) -> dict[str, str]:
+    """This process's environment without anything that would reach into the checkout."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    env.update(extra)
+    return env
+
+
+def run(argv: list[str | Path], cwd: Path, **extra: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [str(a) for a in argv], cwd=cwd, env=clean_env(**extra), capture_output=True, text=True
+    )
+
+
+def check(proc: subprocess.CompletedProcess[str]) -> str:
+    assert proc.returncode == 0, f"{proc.args}\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    return proc.stdout
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A fresh venv, outside the checkout, holding the wheel with the device extra."""
+    tmp = tmp_path_factory.mktemp("wheel")
+    src = tmp / "src"  # build from a copy: the build leaves build/ and egg-info behind
+    shutil.copytree(REPO, src, symlinks=True, ignore=SKIP_IN_COPY)
+    dist = tmp / "dist"
+    built = check_build(
+        run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-w", dist, src], tmp)
+    )
+    assert not any(w in built for w in SETUPTOOLS_WARNINGS), built
+    wheels = list(dist.glob("adaproj_edge-*.whl"))
+    assert len(wheels) == 1
+    venv = tmp / "venv"
+    check(run([sys.executable, "-m", "venv", venv], tmp))
+    py = venv / "bin" / "python"
+    pip = [py, "-m", "pip", "install", "--no-compile", "--disable-pip-version-check"]
+    check(run([*pip, f"{wheels[0]}[device]"], tmp))
+    return venv
+
+
+def check_build(proc: subprocess.CompletedProcess[str]) -> str:
+    check(proc)
+    return proc.stdout + proc.stderr
+
+
+@pytest.fixture(scope="module")
+def work(installed: Path) -> Path:
+    """A folder outside the checkout with the built-in poster as a PNG."""
+    d = installed.parent / "work"
+    d.mkdir()
+    write_png(d / "poster.png", poster())
+    return d
+
+
+@pytest.mark.slow
+def test_the_wheel_holds_the_package_and_its_files_but_no_tests(installed: Path) -> None:
+    wheel = next((installed.parent / "dist").glob("*.whl"))
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for shipped in (
+        "adaproj_edge/py.typed",
+        "adaproj_edge/data/cylinder.mcap",
+        "adaproj_edge/hw/boards/rpi5-oakd.toml",
+        "adaproj_edge/hw/calibration/rpi5-oakd.toml",
+        "adaproj_edge/models/gbvs_saliency.onnx",
+        "adaproj_edge/threads.py",
+    ):
+        assert shipped in names, shipped
+    assert not any(n.startswith("tests/") for n in names)
+
+
+@pytest.mark.slow
+def test_the_installed_package_is_the_one_used(installed: Path, work: Path) -> None:
+    code = "import adaproj_edge, depthai, smbus2; print(adaproj_edge.__file__)"
+    out = check(run([installed / "bin" / "python", "-c", code], work))
+    where = Path(out.strip().splitlines()[-1])  # (depthai may print a warning first)
+    assert installed in where.parents and REPO not in where.parents
+
+
+@pytest.mark.slow
+def test_replay_of_the_built_in_session(installed: Path, work: Path) -> None:
+    out = check(run([installed / "bin" / "adaproj", "replay", "--out", "replay"], work))
+    assert "cylinder.mcap" in out
+    summary = json.loads((work / "replay" / "summary.json").read_text())
+    assert summary["counters"]["frames_shown"] > 0
+    assert (work / "replay" / "contact_sheet.png").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_warp_on_a_built_in_surface(installed: Path, work: Path) -> None:
+    argv = ["warp", "--surface", "sphere-convex", "--image", "poster.png", "--out", "W.npz"]
+    report = json.loads(check(run([installed / "bin" / "adaproj", *argv], work)))
+    assert report["mode"] == "content" and report["iterations"] > 0
+    assert (work / "W.npz").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_saliency_with_the_shipped_model(installed: Path, work: Path) -> None:
+    argv = ["saliency", "poster.png", "--out", "M.png"]
+    assert "salient" in check(run([installed / "bin" / "adaproj", *argv], work))
+    assert (work / "M.png").read_bytes().startswith(b"\x89PNG")
+
+
+@pytest.mark.slow
+def test_run_start_up_checks(installed: Path, work: Path) -> None:
+    adaproj = installed / "bin" / "adaproj"
+    out = check(run([adaproj, "run", "--board", "rpi5-oakd", "--check"], work))
+    site = next(installed.glob("lib/python*/site-packages"))
+    cal = site / "adaproj_edge" / "hw" / "calibration" / "rpi5-oakd.toml"
+    assert f"board rpi5-oakd, calibration {cal}" in out.splitlines()[0]
+    assert "projector 1280x800" in out
+    # without the projector's hardware: the board and calibration load, then one line
+    argv = ["run", "--board", "rpi5-oakd", "--store", "store", "--state", "state"]
+    proc = run([adaproj, *argv], work)
+    err = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2, proc.stderr
+    assert len(err) == 1 and err[0].startswith("adaproj run: error: "), err
+    assert "check that" in err[0]  # says what to check (the framebuffer, a device)
+
+
+@pytest.mark.slow
+def test_first_run_shows_its_progress(tmp_path: Path) -> None:
+    venv = tmp_path / "venv"
+    proc = run([REPO / "tools" / "adaproj", "--help"], tmp_path, ADAPROJ_VENV=str(venv))
+    out = check(proc)
+    assert "usage: adaproj" in out
+    err = proc.stderr
+    stages = [line for line in err.splitlines() if line.startswith("adaproj: [")]
+    assert [s[:14] for s in stages] == ["adaproj: [1/3]", "adaproj: [2/3]", "adaproj: [3/3]"]
+    assert "Successfully installed" in err  # pip's own progress, not --quiet
+    assert f"adaproj: {venv} ready in " in err
+    assert not any(w in err for w in SETUPTOOLS_WARNINGS), err
+    # the second run installs nothing and says nothing
+    again = run([REPO / "tools" / "adaproj", "--help"], tmp_path, ADAPROJ_VENV=str(venv))
+    assert check(again) == out and again.stderr == ""

@@ -1,0 +1,62 @@
+"""The pose cache: keys, the node-by-node surface check, bounds."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.warp.posecache import PoseCache, common_nodes, pose_key, surfaces_match
+
+
+@dataclass
+class _Entry:
+    depth: FloatArray
+    frames: int = 1
+
+
+def test_lattices_of_two_resolutions_compare_at_their_common_nodes() -> None:
+    coarse = np.arange(21 * 21, dtype=np.float64).reshape(21, 21)
+    fine = np.full((81, 81), -1.0)
+    fine[::4, ::4] = coarse
+    for a, b in ((fine, coarse), (coarse, fine)):
+        pair = common_nodes(a, b)
+        assert pair is not None and np.array_equal(pair[0], pair[1])
+    assert common_nodes(np.zeros((30, 30)), coarse) is None  # no common nodes
+    # but a warp made from the unsnapped (noisier) lattice never serves a snapped one
+    entry = _Entry(coarse + 1.5)
+    assert surfaces_match(coarse + 1.5, entry.depth, 0.01, 0.97)
+    assert not surfaces_match(np.where(fine < 0, 7.0, fine + 1.5), entry.depth, 0.01, 0.97)
+
+
+def test_pose_cache_is_bounded_and_checks_the_depth() -> None:
+    depth = np.full((21, 21), 1.5)
+
+    def entry(scale: float) -> _Entry:
+        return _Entry(depth * scale)
+
+    cache: PoseCache[_Entry] = PoseCache(2)
+    entries = [entry(1.0 + 0.1 * k) for k in range(3)]
+    for k, e in enumerate(entries):
+        cache.put((k,), e)
+    assert len(cache) == 2 and cache.get((0,), depth) is None  # the oldest went
+    assert cache.get((2,), depth * 1.2) is entries[2]
+    assert cache.get((1,), depth * 1.05) is None  # same key, another surface: rejected
+    assert (cache.hits, cache.misses, cache.rejected) == (1, 2, 1)
+    # a pose whose key changed (a bin edge) is found by its surface, and refiled
+    assert cache.get((9,), depth * 1.201) is entries[2]
+    assert cache.found_by_surface == 1 and cache.get((9,), depth * 1.2) is entries[2]
+    assert len(cache) == 1
+    o = np.array([0.0, 0.0, 0.0])
+    assert pose_key(o, depth, 0.03, 0.03) != pose_key(o + 0.05, depth, 0.03, 0.03)
+    assert pose_key(o, depth, 0.03, 0.03) != pose_key(o, depth + 0.1, 0.03, 0.03)
+
+
+def test_entries_from_fewer_averaged_frames_are_passed_over_but_kept() -> None:
+    depth = np.full((21, 21), 1.5)
+    cache: PoseCache[_Entry] = PoseCache(4)
+    single = _Entry(depth, frames=1)
+    cache.put((1,), single)
+    assert cache.get((1,), depth, min_frames=3) is None
+    assert len(cache) == 1 and cache.get((1,), depth, min_frames=1) is single
