@@ -11,6 +11,14 @@ triangle only). The search starts from a coarse raster (the pixel with the large
 chessboard distance to the outside, from ``cv2.distanceTransform``) and then climbs
 ``r(c)`` exactly with a shrinking pattern search, so the result is exact, not limited by
 the raster, and inside the region by construction.
+
+Where the largest rectangle can slide (content narrower than the region, a region
+wider at one end), where it ends up is a matter of taste, not of size: among the
+rectangles at most :data:`NEAR` (10 %) narrower than the largest, the one whose centre
+is nearest the region's area centroid is taken (:func:`_centre`), so the picture sits
+in the middle of the lit surface. On a flat wall nothing is lost (the largest slides
+freely); on a wall tilted 35 degrees the largest sits against the far edge and the
+centred one is 9 % narrower.
 """
 
 from __future__ import annotations
@@ -26,6 +34,7 @@ from adaproj_edge.geometry.triangles import unique_edges
 
 RASTER = 256
 TOLERANCE = 4e-4  # the search stops at steps this small (of the region's extent)
+NEAR = 0.1  # a rectangle this much narrower than the largest may be taken to be centred
 _SHIFT = 4
 _DIRECTIONS = np.array(
     [[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=np.float64
@@ -139,6 +148,7 @@ def inscribed_rectangle(
     resolution: int = RASTER,
     boundary: IntArray | None = None,
     start: FloatArray | None = None,
+    near: float = NEAR,
 ) -> Rect:
     """Largest rectangle of ``aspect`` (width / height) inside the union of triangles.
 
@@ -158,6 +168,9 @@ def inscribed_rectangle(
     start : (2,) float array, optional
         A centre to climb from instead of the raster's (warm start: the previous
         rectangle's centre while the mesh changes a little).
+    near : float
+        Of the rectangles at most this much narrower than the largest, the one centred
+        nearest the region's area centroid is returned (0: the largest, wherever it is).
     """
     if tris.size == 0:
         raise WarpError("no surface triangles to place the content on")
@@ -177,6 +190,8 @@ def inscribed_rectangle(
         c, step = _raster_start(q, tris, resolution, edges)
         r = float(linf_clearance(c, p0, p1))
     c, r = _climb(c, r, step, tol, p0, p1)
+    if near > 0:
+        c, r = _centre(c, (1.0 - near) * r, _centroid(q, tris), tol, p0, p1)
     return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
 
 
@@ -226,6 +241,40 @@ def _search(
                 return None
         else:
             step *= _SCALES[-1] / 2
+    return c, r
+
+
+def _centroid(v: FloatArray, tris: IntArray) -> FloatArray:
+    """Area centroid (2,) of the union of the triangles ``tris`` over ``v``."""
+    a, b, d = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
+    area = np.abs(
+        (b[:, 0] - a[:, 0]) * (d[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (d[:, 0] - a[:, 0])
+    )
+    out: FloatArray = (area[:, None] * (a + b + d)).sum(axis=0) / (
+        3.0 * max(float(area.sum()), 1e-300)
+    )
+    return out
+
+
+def _centre(
+    c: FloatArray, least: float, goal: FloatArray, tol: float, p0: FloatArray, p1: FloatArray
+) -> tuple[FloatArray, float]:
+    """From centre ``c``, the centre nearest ``goal`` (2,) whose clearance is still at
+    least ``least``: a pattern search (straight toward the goal, and the climb's steps),
+    moving while it gets nearer; returns it and its clearance."""
+    r = float(linf_clearance(c, p0, p1))
+    gap = float(np.linalg.norm(goal - c))
+    step = gap
+    while step > tol and gap > 0:
+        toward = c + np.minimum(_SCALES * step / gap, 1.0)[:, None] * (goal - c)
+        trial = np.concatenate([toward, (c + step * _PATTERN).reshape(-1, 2)])
+        rt = linf_clearance(trial, p0, p1)
+        gaps = np.where(rt >= least, np.linalg.norm(trial - goal, axis=1), np.inf)
+        k = int(np.argmin(gaps))
+        if gaps[k] < gap:
+            c, r, gap = trial[k], float(rt[k]), float(gaps[k])
+        else:
+            step *= 0.5
     return c, r
 
 

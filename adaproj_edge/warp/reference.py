@@ -278,7 +278,7 @@ def paper_warp(
     x = asm.solve(3 * n, pins3).reshape(n, 3)
     v0 = x[:, :2].copy()
     # §4.1: the content rectangle becomes the maximal inscribed one, same orientation
-    rect = inscribed_rectangle(v0, mesh.tris, w / h, boundary=mesh.boundary)
+    rect = inscribed_rectangle(v0, mesh.tris, w / h, boundary=mesh.boundary, near=0.0)
     scale = w / rect.width
     origin = np.array([rect.x0, rect.y0])
 
