@@ -26,11 +26,13 @@ needed. Along a column or row that needs no more lines nothing is added.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
 from adaproj_edge.warp.warpmap import Grid
 
 SAMPLE = 8  # pixels between the surface samples of the bend measure
@@ -214,3 +216,29 @@ def refine_grid(
         fx = (1 + np.floor((fx - 1) * lo)).astype(np.intp)
         fy = (1 + np.floor((fy - 1) * lo)).astype(np.intp)
     return Refinement(_split(base[0, :, 0], fx), _split(base[:, 0, 1], fy), fx, fy)
+
+
+def adaptive_mesh(
+    surface: Surface, grid: Grid, cache: WarpCache | None = None, refine: bool = True
+) -> tuple[MeshGeometry, dict[str, Any]]:
+    """The mesh of ``surface`` on ``grid``, refined by :func:`refine_grid` (``refine``).
+
+    Returns
+    -------
+    The mesh, and meta: ``mesh`` (the refined grid) and ``refined`` (how many columns
+    and rows each base column and row became), empty when nothing was refined.
+    """
+    mesh = MeshGeometry.build(surface, grid, cache)
+    if not refine:
+        return mesh, {}
+    refinement = refine_grid(surface, grid, mesh.curved_cells)
+    if not refinement.refined:
+        return mesh, {}
+    mesh = MeshGeometry.build(surface, refinement.grid, cache, refinement.grid_uv)
+    return mesh, {
+        "mesh": str(refinement.grid),
+        "refined": {
+            "columns": refinement.factor_x.tolist(),
+            "rows": refinement.factor_y.tolist(),
+        },
+    }

@@ -291,3 +291,23 @@ def make_warp(
         meta,
         depth=depth.reshape(rows, cols),
     )
+
+
+def paper_result(
+    surface: Surface,
+    content_size: tuple[int, int],
+    content_map: ContentMap,
+    settings: WarpSettings,
+    paper: PaperWarp,
+) -> Warp:
+    """The whole ``alternation="paper"`` warp made by a backend's own ``paper``."""
+    image_xy, meta = paper(surface, content_size, content_map, settings)
+    grid_uv = settings.grid.vertices(surface.projector)
+    rows, cols = grid_uv.shape[:2]
+    return Warp(
+        grid_uv,
+        image_xy.reshape(rows, cols, 2),
+        content_size,
+        surface.projector,
+        {"mode": "content", "alternation": "paper", "grid": str(settings.grid), **meta},
+    )

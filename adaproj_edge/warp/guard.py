@@ -192,3 +192,38 @@ def guard(
             return Choice(vt, pt, t, meta)
     meta.update(choice="conformal", reason="no blend is better in both angle and size", t=0.0)
     return Choice(vc, pc, 0.0, meta)
+
+
+def guard_grid(
+    image_xy: FloatArray,
+    mesh: MeshGeometry,
+    conformal: tuple[FloatArray, Placement],
+    content_map: ContentMap,
+    up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
+) -> tuple[FloatArray, dict[str, Any]]:
+    """:func:`guard` for a warp given as content pixels of its grid's vertices (the
+    device's coarse-to-fine result: what is displayed, not the coarse mesh, must be no
+    worse than the conformal warp).
+
+    Parameters
+    ----------
+    image_xy : (R, C, 2) float array
+        Content pixels of the grid vertices (NaN where no surface).
+    mesh : MeshGeometry
+        The grid's mesh (its vertices ``mesh.verts`` index the flattened grid).
+    conformal : (positions (n, 2), placement)
+    content_map : ContentMap
+    up : "up" in frame P.
+
+    Returns
+    -------
+    The vertices kept, (R, C, 2), and the guard's meta.
+    """
+    flat = image_xy.reshape(-1, 2)
+    as_is = Placement(0.0, 1.0, np.zeros(2))  # content pixels already
+    choice = guard(mesh, (flat[mesh.verts], as_is), conformal, content_map, up)
+    if choice.t == 1.0:
+        return image_xy, choice.meta
+    out = np.full_like(flat, np.nan)
+    out[mesh.verts] = choice.placement.apply(choice.v)
+    return out.reshape(image_xy.shape), choice.meta

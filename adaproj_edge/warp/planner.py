@@ -53,20 +53,20 @@ from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.warp.adaptive import refine_grid
+from adaproj_edge.warp.adaptive import adaptive_mesh
 from adaproj_edge.warp.coarse import coarse_indices, upsample_field
 from adaproj_edge.warp.engine import (
     FAST,
     Backend,
-    PaperWarp,
     WarpSettings,
     content_aware,
     make_warp,
+    paper_result,
     refine,
     refine_as_paper,
     standard_warp,
 )
-from adaproj_edge.warp.guard import guard
+from adaproj_edge.warp.guard import guard, guard_grid
 from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
 from adaproj_edge.warp.orientation import fold_count
 from adaproj_edge.warp.placement import Placement, place
@@ -213,24 +213,12 @@ class WarpPlanner:
     def _mesh(
         self, surface: Surface, settings: WarpSettings
     ) -> tuple[MeshGeometry, dict[str, Any]]:
-        """The full-grid mesh of ``surface``, refined where it bends faster than the
-        grid samples it (``settings.adaptive``, full-grid planners only: the device's
+        """The full-grid mesh, refined where the surface bends faster than the grid
+        samples it (``settings.adaptive``; full-grid planners only: the device's
         coarse-to-fine path keeps its grid); meta says how."""
         surface.check_usable()
-        mesh = MeshGeometry.build(surface, self.grid, self.cache)
-        if not settings.adaptive or self.plan_settings.refine_factor > 1:
-            return mesh, {}
-        refinement = refine_grid(surface, self.grid, mesh.curved_cells)
-        if not refinement.refined:
-            return mesh, {}
-        mesh = MeshGeometry.build(surface, refinement.grid, self.cache, refinement.grid_uv)
-        return mesh, {
-            "mesh": str(refinement.grid),
-            "refined": {
-                "columns": refinement.factor_x.tolist(),
-                "rows": refinement.factor_y.tolist(),
-            },
-        }
+        adaptive = settings.adaptive and self.plan_settings.refine_factor <= 1
+        return adaptive_mesh(surface, self.grid, self.cache, adaptive)
 
     def content_free(
         self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
@@ -244,20 +232,25 @@ class WarpPlanner:
         self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
     ) -> tuple[ContentFreeWarp, MeshGeometry]:
         settings = replace(settings, grid=self.grid)
-        mesh, extra = self._mesh(surface, settings)
-        v_conf = self.backend.conformal(mesh)
+        mesh, extra, v_conf, p_conf = self._conformal_start(surface, content_size, settings)
         v, _ = self.backend.content_free(mesh, v_conf, settings.lam)
         placement = place(mesh, v, content_size, settings.up)
         warp = make_warp(mesh, v, placement, surface, content_size, settings, 0, 0.0)
         warp.meta.update(extra)
         depth = _surface_depth(surface)
-        # the conformal warp placed from the content-free placement (a warm start): the
-        # guard's yardstick, once per surface
-        p_conf = place(mesh, v_conf, content_size, settings.up, placement)
         return (
             ContentFreeWarp(warp, depth, v_conf, v, placement, mesh.verts.copy(), p_conf, mesh),
             mesh,
         )
+
+    def _conformal_start(
+        self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
+    ) -> tuple[MeshGeometry, dict[str, Any], FloatArray, Placement]:
+        """The mesh (and its meta), the conformal positions and their placement: what
+        our alternation starts from and the guard's yardstick."""
+        mesh, extra = self._mesh(surface, settings)
+        v_conf = self.backend.conformal(mesh)
+        return mesh, extra, v_conf, place(mesh, v_conf, content_size, settings.up)
 
     def refine(
         self,
@@ -343,7 +336,13 @@ class WarpPlanner:
                 - fine.image_xy[np.ix_(c_rows, c_cols)]
             )
             image_xy = fine.image_xy + upsample_field(delta, c_rows, c_cols, (rows, cols))
-            image_xy, extra["guard"] = self._fine_guard(image_xy, start, content_map, settings)
+            image_xy, extra["guard"] = guard_grid(
+                image_xy,
+                start.mesh,
+                (start.v_conformal, start.conformal_placement),
+                content_map,
+                settings.up,
+            )
         meta = {
             **fine.meta,
             "alternation": settings.alternation,
@@ -379,7 +378,22 @@ class WarpPlanner:
         if settings.mode == "conformal":
             return self.conformal(surface, content_size, settings)
         if settings.alternation == "paper" and self.backend.paper and content_map is not None:
-            return _paper_warp(surface, content_size, content_map, settings, self.backend.paper)
+            return paper_result(surface, content_size, content_map, settings, self.backend.paper)
+        if (
+            self.plan_settings.refine_factor <= 1
+            and content_map is not None
+            and settings.alternation == "ours"
+        ):
+            # the full grid: our alternation needs no content-free solve when some but
+            # not all content is salient (what content_free + refine give, sooner)
+            full = replace(settings, grid=self.grid)
+            mesh, extra, v_conf, p_conf = self._conformal_start(surface, content_size, full)
+            ours = content_aware(mesh, v_conf, p_conf, content_map, full, self.backend)
+            if ours is not None:
+                v, placement, its, frac, guarded = ours
+                warp = make_warp(mesh, v, placement, surface, content_size, full, its, frac)
+                warp.meta.update(extra, **guarded)
+                return warp
         start, mesh = self._content_free(surface, content_size, settings)
         if content_map is None:
             return start.warp
@@ -396,32 +410,6 @@ class WarpPlanner:
             return self.rows, self.cols, self.coarse_grid
         rows, cols = start.warp.grid_uv.shape[:2]
         return np.arange(rows), np.arange(cols), Grid(cols=cols - 1, rows=rows - 1)
-
-    def _fine_guard(
-        self,
-        image_xy: FloatArray,
-        start: ContentFreeWarp,
-        content_map: ContentMap,
-        settings: WarpSettings,
-    ) -> tuple[FloatArray, dict[str, Any]]:
-        """A coarse-to-fine result ``image_xy`` (R, C, 2) checked on the full grid's
-        mesh against the conformal warp (:func:`~adaproj_edge.warp.guard.guard`: what is
-        displayed, not the coarse mesh, is what must be no worse)."""
-        mesh = start.mesh
-        flat = image_xy.reshape(-1, 2)
-        as_is = Placement(0.0, 1.0, np.zeros(2))  # image_xy is in content pixels already
-        choice = guard(
-            mesh,
-            (flat[start.verts], as_is),
-            (start.v_conformal, start.conformal_placement),
-            content_map,
-            settings.up,
-        )
-        if choice.t == 1.0:
-            return image_xy, choice.meta
-        out = np.full_like(flat, np.nan)
-        out[start.verts] = choice.placement.apply(choice.v)
-        return out.reshape(image_xy.shape), choice.meta
 
     def _on_mesh(
         self, v_fine: FloatArray, start: ContentFreeWarp, to_fine: IntArray, verts: IntArray
@@ -458,26 +446,6 @@ class WarpPlanner:
             return v0, start.placement, False
         v, _ = self.backend.content_free(mesh, self.backend.conformal(mesh), settings.lam)
         return v, place(mesh, v, content_map.content_size, settings.up), False
-
-
-def _paper_warp(
-    surface: Surface,
-    content_size: tuple[int, int],
-    content_map: ContentMap,
-    settings: WarpSettings,
-    paper: PaperWarp,
-) -> Warp:
-    """The whole ``alternation="paper"`` warp made by a backend's own ``paper``."""
-    image_xy, meta = paper(surface, content_size, content_map, settings)
-    grid_uv = settings.grid.vertices(surface.projector)
-    rows, cols = grid_uv.shape[:2]
-    return Warp(
-        grid_uv,
-        image_xy.reshape(rows, cols, 2),
-        content_size,
-        surface.projector,
-        {"mode": "content", "alternation": "paper", "grid": str(settings.grid), **meta},
-    )
 
 
 def compute_warp(
