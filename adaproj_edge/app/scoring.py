@@ -67,10 +67,14 @@ class Scorer:
             return
         proj = rt.calibration.projector
         truth = true_surface(self.scene, pose, proj, (101, 161))
+        # the engine's warp on the true surface: full grid, full refinement, on the
+        # device's grid (compute_warp would add lines where the surface bends)
         settings = WarpSettings(
-            mode="content", grid=rt.settings.grid, threshold=item.settings.threshold
+            mode="content",
+            grid=rt.settings.grid,
+            threshold=item.settings.threshold,
+            adaptive=False,
         )
-        # the engine's warp on the true surface: full grid, full refinement
         ref_map = display_float_map(
             compute_warp(truth, item.size, item.content_map, settings), rt.settings.map_scale
         )
