@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from adaproj_edge.geometry.analytic import AnalyticSurface, Corner
+from adaproj_edge.geometry.analytic import AnalyticSurface
 
 
 @dataclass
@@ -24,7 +24,7 @@ class Distortion:
     log_size: NDArray[np.float64]
     centroid_xy: NDArray[np.float64]  # content-space centroid per triangle
     centroid_uv: NDArray[np.float64]  # projector-space centroid per triangle
-    folds: int  # triangles whose content orientation is reversed
+    folds: int  # triangles whose content orientation is reversed (creases included)
     nonfinite: int
 
     def select(self, keep: NDArray[np.bool_]) -> Distortion:
@@ -82,20 +82,22 @@ def measure(
         c0, c1, c2 = c[s0].reshape(-1, 2), c[s1].reshape(-1, 2), c[s2].reshape(-1, 2)
         x0, x1, x2 = X[s0].reshape(-1, 3), X[s1].reshape(-1, 3), X[s2].reshape(-1, 3)
         l0, l1, l2 = label[s0].ravel(), label[s1].ravel(), label[s2].ravel()
-        ok = (
+        shown = (
             np.isfinite(c0).all(1)
             & np.isfinite(c1).all(1)
             & np.isfinite(c2).all(1)
             & np.isfinite(x0).all(1)
             & np.isfinite(x1).all(1)
             & np.isfinite(x2).all(1)
-            & (l0 == l1)
-            & (l1 == l2)  # the map is not differentiable across a crease
         )
+        # a fold is a fold anywhere, across a crease too (the map stays continuous there)
+        dc_all = np.stack([c1 - c0, c2 - c0], axis=2)[shown]
+        det_all = dc_all[:, 0, 0] * dc_all[:, 1, 1] - dc_all[:, 0, 1] * dc_all[:, 1, 0]
+        folds += int(np.sum(det_all <= 0))
+        ok = shown & (l0 == l1) & (l1 == l2)  # the map is not differentiable across a crease
         dc = np.stack([c1 - c0, c2 - c0], axis=2)[ok]  # (n, 2, 2) columns
         dX = np.stack([x1 - x0, x2 - x0], axis=2)[ok]  # (n, 3, 2)
         det = dc[:, 0, 0] * dc[:, 1, 1] - dc[:, 0, 1] * dc[:, 1, 0]
-        folds += int(np.sum(det <= 0))
         good = det > 0
         J = dX[good] @ np.linalg.inv(dc[good])  # (n, 3, 2)
         sv = np.linalg.svd(J, compute_uv=False)
@@ -115,10 +117,11 @@ def measure(
 
 
 def _labels(surface: AnalyticSurface, X: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Smooth-patch label of each point: the wall of a corner, else one patch."""
-    if isinstance(surface, Corner):
-        return (X[..., 0] >= surface.x0).astype(np.int64)
-    return np.zeros(X.shape[:2], dtype=np.int64)
+    """Smooth-patch label of each point (the walls of a corner, a wall and its floor);
+    -1 where the ray meets nothing."""
+    ok = np.isfinite(X).all(axis=-1)
+    label = surface.patch(np.where(ok[..., None], X, 0.0)).astype(np.int64)
+    return np.where(ok, label, -1)
 
 
 def in_mask(d: Distortion, mask: NDArray[np.floating]) -> NDArray[np.bool_]:

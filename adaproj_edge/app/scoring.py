@@ -71,10 +71,14 @@ class Scorer:
         if rt.shown_map is None or item.content_map is None:
             return
         truth = true_surface(self.scene, pose, self.projector, (101, 161))
+        # the engine's warp on the true surface: full grid, full refinement, on the
+        # device's grid (compute_warp would add lines where the surface bends)
         settings = WarpSettings(
-            mode="content", grid=rt.settings.grid, threshold=item.settings.threshold
+            mode="content",
+            grid=rt.settings.grid,
+            threshold=item.settings.threshold,
+            adaptive=False,
         )
-        # the engine's warp on the true surface: full grid, full refinement
         ref_map = display_float_map(
             compute_warp(truth, item.size, item.content_map, settings), rt.settings.map_scale
         )

@@ -24,6 +24,9 @@ from adaproj_edge.geometry.triangles import cross, triangle_normals
 ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, of a crease
 CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this make a crease
 FIT = 0.25  # the two planes must explain the surface this much better than the triangle
+CURVED_FIT = 0.2  # ... or, on a curved crease, this much better than its chord does
+SAME_SIDE_COS = float(np.cos(np.deg2rad(12.0)))  # two corners of one side: nearly one plane
+SOFTNESS = 4.0  # on a curved crease, the side is chosen softly over this many fit residuals
 
 
 @dataclass(frozen=True)
@@ -38,6 +41,8 @@ class Unfolding:
     point_b : (T, 3) a point of plane b.
     rotation : (T, 3, 3) and origin : (T, 3): a point X of plane b unfolds to
         ``origin + rotation @ (X - origin)``.
+    softness : (T,) metres over which the side of a point is blended (0: a straight
+        crease, the nearer plane's side).
     """
 
     points: FloatArray
@@ -48,9 +53,16 @@ class Unfolding:
     point_b: FloatArray
     rotation: FloatArray
     origin: FloatArray
+    softness: FloatArray
 
     def unfold_points(self, t: IntArray, X: FloatArray) -> FloatArray:
-        """Unfold surface points ``X`` (..., 3) lying in triangles ``t`` (...)."""
+        """Unfold surface points ``X`` (..., 3) lying in triangles ``t`` (...).
+
+        A point nearer plane b than plane a is rotated with it. At a curved crease the
+        two planes meet along a line that is not the crease, so a hard choice would tear
+        the map where the surface changes side; there the choice is blended over the
+        triangle's ``softness`` (metres of difference in the distances to the planes).
+        """
         out = X.copy()
         f = self.folded[t]
         if not np.any(f):
@@ -58,18 +70,40 @@ class Unfolding:
         tf, xf = t[f], X[f]
         da = np.abs(np.sum((xf - self.point_a[tf]) * self.normal_a[tf], axis=-1))
         db = np.abs(np.sum((xf - self.point_b[tf]) * self.normal_b[tf], axis=-1))
-        on_b = db < da
+        soft = self.softness[tf]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s = np.where(soft > 0, np.clip(0.5 + (da - db) / (2 * soft), 0.0, 1.0), 0.0)
+        share = np.where(soft > 0, s * s * (3 - 2 * s), (db < da).astype(np.float64))
         o = self.origin[tf]
         rotated = o + np.einsum("nij,nj->ni", self.rotation[tf], xf - o)
-        out[f] = np.where(on_b[:, None], rotated, xf)
+        out[f] = xf + share[:, None] * (rotated - xf)
         return out
 
 
+def crease_probes(tri_uv: FloatArray) -> FloatArray:
+    """Where a triangle with pixel corners ``tri_uv`` (T, 3, 2) is probed for a crease:
+    its edge midpoints and its centroid, (T, 4, 2)."""
+    return np.stack(
+        [
+            (tri_uv[:, 0] + tri_uv[:, 1]) / 2,
+            (tri_uv[:, 1] + tri_uv[:, 2]) / 2,
+            (tri_uv[:, 2] + tri_uv[:, 0]) / 2,
+            tri_uv.mean(axis=1),
+        ],
+        axis=1,
+    )
+
+
 def unfold_creases(
-    surface: Surface, tri_uv: FloatArray, tris: IntArray, points: FloatArray
+    surface: Surface,
+    tri_uv: FloatArray,
+    tris: IntArray,
+    points: FloatArray,
+    probes: FloatArray | None = None,
 ) -> Unfolding:
     """Unfold the creased triangles among ``tris`` (T, 3) (vertex indices into ``points``
-    (N, 3)), whose pixel corners are ``tri_uv`` (T, 3, 2)."""
+    (N, 3)), whose pixel corners are ``tri_uv`` (T, 3, 2). ``probes`` (T, 4, 3): the
+    surface at their :func:`crease_probes`, when the caller has sampled it already."""
     tri_pts = points[tris]
     t_count = tris.shape[0]
     out = tri_pts.copy()
@@ -83,21 +117,13 @@ def unfold_creases(
         nan3.copy(),
         np.tile(np.eye(3), (t_count, 1, 1)),
         np.zeros((t_count, 3)),
+        np.zeros(t_count),
     )
     n = triangle_normals(tri_pts)
     size = np.sqrt(
         np.linalg.norm(cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0]), axis=1)
     )
-    probes = np.stack(
-        [
-            (tri_uv[:, 0] + tri_uv[:, 1]) / 2,
-            (tri_uv[:, 1] + tri_uv[:, 2]) / 2,
-            (tri_uv[:, 2] + tri_uv[:, 0]) / 2,
-            tri_uv.mean(axis=1),
-        ],
-        axis=1,
-    )
-    xs = surface.points_at(probes)  # (T, 4, 3)
+    xs = surface.points_at(crease_probes(tri_uv)) if probes is None else probes  # (T, 4, 3)
     dist = np.abs(np.sum((xs - tri_pts[:, :1]) * n[:, None, :], axis=2))
     rough = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=1) > ROUGH * size
     if not np.any(rough):
@@ -122,20 +148,25 @@ def unfold_creases(
     with np.errstate(invalid="ignore"):
         differ = np.any(np.einsum("rkj,rj->rk", corner_n, corner_n[:, 0]) < CREASE_COS, axis=1)
     for t in rough_t[differ & np.all(np.isfinite(corner_n), axis=(1, 2))]:
-        normals = vn[tris[t]]
-        group_b = [k for k in range(3) if float(normals[k] @ normals[0]) < CREASE_COS]
-        if not group_b:
+        groups = _crease_groups(vn[tris[t]])
+        if groups is None:
             continue
-        if any(float(normals[k] @ normals[group_b[0]]) < CREASE_COS for k in group_b):
-            continue  # three different planes: not a single crease
-        group_a = [k for k in range(3) if k not in group_b]
-        na, nb = normals[group_a[0]], normals[group_b[0]]
-        pa, pb = tri_pts[t, group_a[0]], tri_pts[t, group_b[0]]
+        group_a, group_b = groups
+        n_a, n_b = vn[tris[t, group_a]], vn[tris[t, group_b]]
+        na, pa = _plane(n_a, tri_pts[t, group_a], n_b.mean(axis=0))
+        nb, pb = _plane(n_b, tri_pts[t, group_b], n_a.mean(axis=0))
         # a crease only if the two planes explain the surface inside the triangle (a
         # strongly curved smooth patch, e.g. near a silhouette, is left as it is)
         probe = xs[t][np.all(np.isfinite(xs[t]), axis=1)]
         fit = np.minimum(np.abs((probe - pa) @ na), np.abs((probe - pb) @ nb))
-        if probe.size == 0 or float(np.max(fit)) > FIT * ROUGH * float(size[t]):
+        if probe.size == 0:
+            continue
+        # straight creases: the two planes explain the surface; curved ones (a curved
+        # wall meeting a floor): far better than the triangle does (a smooth curved
+        # patch is explained about as badly by its corners' planes as by its chord)
+        worst = float(np.max(fit))
+        chord = float(np.max(np.where(np.isfinite(dist[t]), dist[t], 0.0)))
+        if worst > FIT * ROUGH * float(size[t]) and worst > CURVED_FIT * chord:
             continue
         rot, origin = _unfolding_rotation(pa, na, pb, nb)
         out[t, group_b] = origin + (tri_pts[t, group_b] - origin) @ rot.T
@@ -143,7 +174,44 @@ def unfold_creases(
         unfolding.normal_a[t], unfolding.point_a[t] = na, pa
         unfolding.normal_b[t], unfolding.point_b[t] = nb, pb
         unfolding.rotation[t], unfolding.origin[t] = rot, origin
+        if worst > FIT * ROUGH * float(size[t]):  # a curved crease: soften the side choice
+            unfolding.softness[t] = SOFTNESS * worst
     return unfolding
+
+
+def _crease_groups(normals: FloatArray) -> tuple[list[int], list[int]] | None:
+    """The corners (by their planes' normals (3, 3)) on either side of a crease: the two
+    most different planes are its sides and the third corner joins the nearer one, if
+    it is much nearer to it (on a curved wall two corners' planes differ a little); the
+    side with corner 0 first. None without a single crease."""
+    pairs = ((0, 1), (0, 2), (1, 2))
+    dots = [float(normals[i] @ normals[j]) for i, j in pairs]
+    i, j = pairs[int(np.argmin(dots))]
+    crease = float(np.arccos(np.clip(min(dots), -1.0, 1.0)))
+    if min(dots) >= CREASE_COS:
+        return None
+    k = 3 - i - j
+    to_i, to_j = float(normals[k] @ normals[i]), float(normals[k] @ normals[j])
+    partner = i if to_i >= to_j else j
+    if np.arccos(np.clip(max(to_i, to_j), -1.0, 1.0)) > 0.5 * crease:
+        return None  # three different planes: not a single crease
+    side = [partner, k]
+    other = [j] if partner == i else [i]
+    return (sorted(side), other) if 0 in side else (other, sorted(side))
+
+
+def _plane(
+    normals: FloatArray, points: FloatArray, other: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The plane (unit normal, point) of one side's corners, with normals ``normals``
+    (k, 3) at ``points`` (k, 3): their mean normal through their mean point; but when
+    their normals differ much (a corner on the crease itself has a mix of both sides'
+    normals), the corner farthest from the other side (its normal ``other``)."""
+    if normals.shape[0] > 1 and float(normals[0] @ normals[1]) < SAME_SIDE_COS:
+        k = int(np.argmin(normals @ other))
+        return normals[k], points[k]
+    n = normals.sum(axis=0)
+    return n / np.linalg.norm(n), points.mean(axis=0)
 
 
 def _unfolding_rotation(

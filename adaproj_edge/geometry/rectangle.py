@@ -12,17 +12,21 @@ chessboard distance to the outside, from ``cv2.distanceTransform``) and then cli
 ``r(c)`` exactly with a shrinking pattern search, so the result is exact, not limited by
 the raster, and inside the region by construction.
 
+Where the largest rectangle can slide (content narrower than the region, a region
+wider at one end), where it ends up is a matter of taste, not of size: among the
+rectangles at most :data:`NEAR` (10 %) narrower than the largest, the one whose centre
+is nearest the region's area centroid is taken (:func:`_centre`), so the picture sits
+in the middle of the lit surface. On a flat wall nothing is lost (the largest slides
+freely); on a wall tilted 35 degrees the largest sits against the far edge and the
+centred one is 9 % narrower.
+
 Content turned upright in a rolled projector's frame meets a region whose sides are
 not axis-aligned: ``r`` then has a sharp ridge running obliquely along the sides the
-square touches (falling at a slope of about 1 across it, by a fraction of a per cent
-along it), which the eight directions of the pattern cannot follow; the pattern also
-steps along the region's two dominant side directions (:func:`side_directions`). Along
-such a ridge ``r`` is nearly flat, often with a maximum at either end that wins by
-0.1 % one frame and loses the next: consecutive frames would place the content
-centimetres apart. With ``near`` > 0 (:func:`~adaproj_edge.warp.placement.place` asks
-for it when the content is turned) the centre taken is the one nearest the region's
-area centroid, on the way from there to the best centre found, whose square is within
-``near`` of the largest: centred, at most ``near`` smaller.
+square touches, which the eight directions of the pattern cannot follow; the pattern
+also steps along the region's two dominant side directions (:func:`side_directions`).
+Along such a ridge ``r`` is nearly flat, often with a maximum at either end that wins
+by 0.1 % one frame and loses the next; the centring above also keeps consecutive
+frames from jumping between them.
 """
 
 from __future__ import annotations
@@ -37,13 +41,13 @@ from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.triangles import unique_edges
 
 RASTER = 256
+TOLERANCE = 4e-4  # the search stops at steps this small (of the region's extent)
+NEAR = 0.1  # a rectangle this much narrower than the largest may be taken to be centred
 _SHIFT = 4
 _DIRECTIONS = np.array(
     [[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=np.float64
 )
 _SCALES = np.array([1.0, 0.5, 0.25, 0.125])
-_PATTERN = _SCALES[:, None, None] * _DIRECTIONS[None]  # (4, 8, 2)
-NEAR = 0.03
 
 
 @dataclass(frozen=True)
@@ -64,9 +68,43 @@ def boundary_edges(tris: IntArray) -> IntArray:
     return out
 
 
+def boundary_loops(edges: IntArray) -> list[IntArray] | None:
+    """The boundary edges (E, 2) chained into closed loops of vertex indices; None when
+    they do not chain simply (a vertex on more than two boundary edges)."""
+    nxt: dict[int, list[int]] = {}
+    for a, b in edges.tolist():
+        nxt.setdefault(a, []).append(b)
+        nxt.setdefault(b, []).append(a)
+    if any(len(x) != 2 for x in nxt.values()):
+        return None
+    loops, seen = [], set()
+    for start in nxt:
+        if start in seen:
+            continue
+        loop, prev, cur = [start], -1, start
+        seen.add(start)
+        while True:
+            a, b = nxt[cur]
+            step = b if a == prev else a
+            if step == start:
+                break
+            loop.append(step)
+            seen.add(step)
+            prev, cur = cur, step
+        loops.append(np.array(loop, dtype=np.intp))
+    return loops
+
+
 def linf_clearance(c: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
     """L-infinity distance from points ``c`` (..., 2) to the segments p0-p1 (E, 2),
     minimised over the segments: (...)."""
+    out: FloatArray = linf_distances(c, p0, p1).min(axis=1).reshape(c.shape[:-1])
+    return out
+
+
+def linf_distances(c: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
+    """L-infinity distance (N, E) from each of the points ``c`` (..., 2) (N of them) to
+    each of the segments p0-p1 (E, 2)."""
     a = p0[None, :, :] - c.reshape(-1, 1, 2)  # (N, E, 2): segment start relative to c
     d = (p1 - p0)[None, :, :]
     # f(t) = max(|a_x + t d_x|, |a_y + t d_y|) is convex and piecewise linear in t: its
@@ -80,11 +118,13 @@ def linf_clearance(c: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
         t = np.clip(num / np.where(ok, den, 1.0), 0.0, 1.0)
         f = np.maximum(np.abs(ax + t * dx), np.abs(ay + t * dy))
         best = np.minimum(best, np.where(ok, f, np.inf))
-    out: FloatArray = best.min(axis=1).reshape(c.shape[:-1])
+    out: FloatArray = best
     return out
 
 
-def _raster_start(v: FloatArray, tris: IntArray, resolution: int) -> tuple[FloatArray, float]:
+def _raster_start(
+    v: FloatArray, tris: IntArray, resolution: int, boundary: IntArray | None = None
+) -> tuple[FloatArray, float]:
     """Centre (2,) of the largest square in a raster of the region, and the cell size."""
     lo = v.min(axis=0)
     hi = v.max(axis=0)
@@ -95,8 +135,12 @@ def _raster_start(v: FloatArray, tris: IntArray, resolution: int) -> tuple[Float
     origin = lo - 1.5 * cell
     shape = (int(np.ceil((hi[1] - lo[1]) / cell)) + 4, int(np.ceil((hi[0] - lo[0]) / cell)) + 4)
     mask = np.zeros(shape, dtype=np.uint8)
-    q = np.rint((v[tris] - origin) / cell * (1 << _SHIFT)).astype(np.int32)
-    cv2.fillPoly(mask, list(q), 1, lineType=cv2.LINE_8, shift=_SHIFT)
+    q = np.rint((v - origin) / cell * (1 << _SHIFT)).astype(np.int32)
+    loops = None if boundary is None else boundary_loops(boundary)
+    if loops is not None:  # the region's outline (holes included: filled even-odd)
+        cv2.fillPoly(mask, [q[loop] for loop in loops], 1, lineType=cv2.LINE_8, shift=_SHIFT)
+    else:
+        cv2.fillPoly(mask, list(q[tris]), 1, lineType=cv2.LINE_8, shift=_SHIFT)
     dist = cv2.distanceTransform(mask, cv2.DIST_C, 3)
     _, best, _, loc = cv2.minMaxLoc(dist)
     if best < 1:
@@ -111,7 +155,7 @@ def inscribed_rectangle(
     resolution: int = RASTER,
     boundary: IntArray | None = None,
     start: FloatArray | None = None,
-    near: float = 0.0,
+    near: float = NEAR,
 ) -> Rect:
     """Largest rectangle of ``aspect`` (width / height) inside the union of triangles.
 
@@ -132,8 +176,8 @@ def inscribed_rectangle(
         A centre to climb from instead of the raster's (warm start: the previous
         rectangle's centre while the mesh changes a little).
     near : float
-        When positive, the centre nearest the region's centroid whose rectangle is
-        within this fraction of the largest (0: the largest the search finds).
+        Of the rectangles at most this much narrower than the largest, the one centred
+        nearest the region's area centroid is returned (0: the largest, wherever it is).
     """
     if tris.size == 0:
         raise WarpError("no surface triangles to place the content on")
@@ -141,35 +185,82 @@ def inscribed_rectangle(
     edges = boundary_edges(tris) if boundary is None else boundary
     p0, p1 = q[edges[:, 0]], q[edges[:, 1]]
     extent = float(np.max(np.ptp(q, axis=0)))
-    tol = 1e-4 * extent
+    tol = TOLERANCE * extent
     sides = side_directions(p1 - p0)
     directions = np.concatenate([_DIRECTIONS, sides, -sides])
-    pattern = _SCALES[:, None, None] * directions[None]
+    pattern = _SCALES[:, None, None] * directions[None]  # (4, 12, 2)
     r = -1.0
     if start is not None:
         c = np.asarray(start, dtype=np.float64) * np.array([1.0, aspect])
-        step = 0.01 * extent
+        step = 0.002 * extent  # a warm start: the rectangle moves little
         r = float(linf_clearance(c, p0, p1))
         if not _inside(c, q, tris):
             r = -1.0
     if r <= 0:
-        c, step = _raster_start(q, tris, resolution)
+        c, step = _raster_start(q, tris, resolution, edges)
         r = float(linf_clearance(c, p0, p1))
-    # pattern search, four step sizes per evaluation (step, step/2, step/4, step/8):
-    # move to the best trial that improves the objective and carry on at its step size;
-    # when none does, the step shrinks 16-fold
+    c, r = _climb(c, r, step, tol, p0, p1, pattern)
+    if near > 0:
+        cc, rc = _centre(c, (1.0 - near) * r, _centroid(q, tris), tol, p0, p1, pattern)
+        if _inside(cc, q, tris):  # (the clearance alone does not tell in from out)
+            c, r = cc, rc
+    return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
+
+
+def _climb(
+    c: FloatArray,
+    r: float,
+    step: float,
+    tol: float,
+    p0: FloatArray,
+    p1: FloatArray,
+    pattern: FloatArray,
+) -> tuple[FloatArray, float]:
+    """Climb the clearance from centre ``c`` (clearance ``r``), first over the boundary
+    edges that can be the nearest ones while the centre stays within reach of ``c``;
+    when the centre leaves that reach or a far edge ends up nearer, the search is redone
+    over all of them."""
+    reach = 4.0 * step
+    near = linf_distances(c[None, :], p0, p1)[0] <= r + 2.0 * reach
+    if not near.all():
+        found = _search(c, r, step, tol, p0[near], p1[near], reach, pattern)
+        if found is not None and float(linf_clearance(found[0], p0, p1)) >= found[1] * (
+            1.0 - 1e-12
+        ):
+            return found
+    found = _search(c, r, step, tol, p0, p1, np.inf, pattern)
+    assert found is not None
+    return found
+
+
+def _search(
+    c: FloatArray,
+    r: float,
+    step: float,
+    tol: float,
+    p0: FloatArray,
+    p1: FloatArray,
+    reach: float,
+    pattern: FloatArray,
+) -> tuple[FloatArray, float] | None:
+    """Pattern search, four step sizes per evaluation (step, step/2, step/4, step/8):
+    move to the best trial that improves r and carry on at its step size (twice it
+    after a move at the full step: the optimum may be far); when none improves, the
+    step shrinks 16-fold. None if the centre goes farther than ``reach``."""
+    start = c
     while step > tol:
         trial = (c + step * pattern).reshape(-1, 2)
         rt = linf_clearance(trial, p0, p1)
         k = int(np.argmax(rt))
         if rt[k] > r:
             c, r = trial[k], float(rt[k])
-            step *= _SCALES[k // len(directions)]
+            scale = k // pattern.shape[1]
+            step *= 2.0 if scale == 0 else _SCALES[scale]
+            if float(np.max(np.abs(c - start))) > reach:
+                return None
         else:
             step *= _SCALES[-1] / 2
-    if near > 0:
-        c, r = _nearest_to(_centroid(q, tris), c, r, near, q, tris, p0, p1)
-    return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
+    return c, r
 
 
 def side_directions(d: FloatArray, bins: int = 180) -> FloatArray:
@@ -194,38 +285,44 @@ def side_directions(d: FloatArray, bins: int = 180) -> FloatArray:
     return np.array(out)
 
 
-def _nearest_to(
-    g: FloatArray,
+def _centroid(v: FloatArray, tris: IntArray) -> FloatArray:
+    """Area centroid (2,) of the union of the triangles ``tris`` over ``v``."""
+    a, b, d = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
+    area = np.abs(
+        (b[:, 0] - a[:, 0]) * (d[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (d[:, 0] - a[:, 0])
+    )
+    out: FloatArray = (area[:, None] * (a + b + d)).sum(axis=0) / (
+        3.0 * max(float(area.sum()), 1e-300)
+    )
+    return out
+
+
+def _centre(
     c: FloatArray,
-    r: float,
-    near: float,
-    q: FloatArray,
-    tris: IntArray,
+    least: float,
+    goal: FloatArray,
+    tol: float,
     p0: FloatArray,
     p1: FloatArray,
+    pattern: FloatArray,
 ) -> tuple[FloatArray, float]:
-    """The centre nearest ``g`` on the segment from ``g`` to ``c`` (the best centre,
-    clearance ``r``) inside the region whose clearance is within ``near`` of ``r``."""
-    t = np.linspace(0.0, 1.0, 65)[:, None]
-    pts = g + t * (c - g)
-    rs = linf_clearance(pts, p0, p1)
-    for k in np.flatnonzero(rs >= (1.0 - near) * r):
-        if _inside(pts[k], q, tris):
-            return pts[k], float(rs[k])
+    """From centre ``c``, the centre nearest ``goal`` (2,) whose clearance is still at
+    least ``least``: a pattern search (straight toward the goal, and the climb's steps),
+    moving while it gets nearer; returns it and its clearance."""
+    r = float(linf_clearance(c, p0, p1))
+    gap = float(np.linalg.norm(goal - c))
+    step = gap
+    while step > tol and gap > 0:
+        toward = c + np.minimum(_SCALES * step / gap, 1.0)[:, None] * (goal - c)
+        trial = np.concatenate([toward, (c + step * pattern).reshape(-1, 2)])
+        rt = linf_clearance(trial, p0, p1)
+        gaps = np.where(rt >= least, np.linalg.norm(trial - goal, axis=1), np.inf)
+        k = int(np.argmin(gaps))
+        if gaps[k] < gap:
+            c, r, gap = trial[k], float(rt[k]), float(gaps[k])
+        else:
+            step *= 0.5
     return c, r
-
-
-def _centroid(v: FloatArray, tris: IntArray) -> FloatArray:
-    """The area centroid (2,) of the triangles ``tris`` over vertices ``v`` (n, 2)."""
-    a, b, d = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
-    e1, e2 = b - a, d - a
-    area = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-    total = float(area.sum())
-    if total <= 0:
-        out: FloatArray = v.mean(axis=0)
-        return out
-    out = (area[:, None] * (a + b + d) / 3.0).sum(axis=0) / total
-    return out
 
 
 def _inside(c: FloatArray, v: FloatArray, tris: IntArray) -> bool:

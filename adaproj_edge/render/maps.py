@@ -1,22 +1,28 @@
 """Warp mesh -> per-pixel map: the content coordinate each projector pixel shows.
 
-Every pixel lies in one grid triangle and shows ``V0 + u (V1 - V0) + v (V2 - V0)`` of
-that triangle's content-space corners. The weights (u, v) depend only on the surface
-and the grid, never on where the corners go in content space, so they are computed
-once per pose (:class:`PixelWeights`) and any later warp of the same pose — a
-content-aware refinement, new content — maps by a gather (:meth:`PixelWeights.map`).
+Every pixel shows a weighted sum of a few grid vertices' content positions: the
+corners of its grid triangle (``V0 + u (V1 - V0) + v (V2 - V0)``), and near an edge
+the neighbouring triangle's too. The weights depend only on the surface and the grid,
+never on where the vertices go in content space, so they are computed once per pose
+(:class:`PixelWeights`) and any later warp of the same pose - a content-aware
+refinement, new content - maps by a gather (:meth:`PixelWeights.map`).
 
-How (u, v) are found:
+How the weights are found:
 
-* with the dense surface: the pixel's own surface point X is projected orthogonally
-  onto the plane of its 3D triangle. On a plane this is exact; on a curved developable
-  surface the error is second order in the cell's curvature (it does not grow with the
-  viewing angle, unlike any interpolation along the ray). In a triangle that a crease
-  (a wall corner) runs through, X is first unfolded like the triangle itself
-  (:mod:`adaproj_edge.geometry.creases`), so each side of the crease is exact too.
+* with the dense surface (:mod:`adaproj_edge.render.seams`): the pixel's own surface
+  point X is projected orthogonally onto the plane of its 3D triangle. On a plane this
+  is exact; on a curved developable surface the error is second order in the cell's
+  curvature (it does not grow with the viewing angle, unlike any interpolation along
+  the ray). In a triangle that a crease (a wall corner) runs through, X is first
+  unfolded like the triangle itself (:mod:`adaproj_edge.geometry.creases`), so each
+  side of the crease is exact too. Near an edge the places given by the two triangles
+  that share it are blended, so the map is continuous across it; where the result
+  would still turn a pixel over (at a curved crease), the perspective-correct map is
+  blended in locally (:mod:`adaproj_edge.render.folds`) and the pixels counted.
 * where X is unknown (or without a surface): perspective-correct interpolation with
   the vertex depths, ``(l_k / z_k) / sum_j (l_j / z_j)`` for pixel-space barycentrics
-  ``l_k`` — exact over the 3D triangle the rays span.
+  ``l_k`` - exact over the 3D triangle the rays span, continuous, and fold-free
+  wherever the mesh is.
 
 Plain piecewise-linear interpolation in pixel space leaves a projective error of a few
 percent per cell even on a tilted plane.
@@ -26,14 +32,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
-from adaproj_edge.geometry.creases import unfold_creases
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import grid_cells, grid_triangles
+from adaproj_edge.render.folds import guard as fold_guard
+from adaproj_edge.render.seams import surface_weights
 from adaproj_edge.warp.warpmap import Warp
 
 
@@ -75,19 +83,24 @@ class PixelLayout:
 
 @dataclass(frozen=True)
 class PixelWeights:
-    """For every projector pixel: its grid triangle and weights (u, v) on its corners.
+    """For every projector pixel: weights on a few grid vertices (its triangle's corners,
+    and near an edge the neighbour's far corner too) that place it in content space.
 
     Attributes
     ----------
-    corners : (3, H, W) int32 grid vertex indices of the corners of each pixel's
-        triangle (``grid_triangles`` order).
-    u, v : (H, W) float32 weights of the triangle's corners 1 and 2; NaN where the
-        pixel's triangle has a corner without surface (it shows black).
+    corners : (K, H, W) int32 grid vertex indices (K = 3: the corners of each pixel's
+        triangle in ``grid_triangles`` order; K = 6 with a surface, see
+        :mod:`adaproj_edge.render.seams`).
+    weights : (K, H, W) float32 weights on them; NaN where the pixel's triangle has a
+        corner without surface (it shows black).
+    fallback : (3, H, W) float32 or None
+        With a surface, the perspective-correct weights on the first three corners,
+        blended in where the surface-based map would fold (:mod:`~adaproj_edge.render.folds`).
     """
 
     corners: NDArray[np.int32]
-    u: NDArray[np.float32]
-    v: NDArray[np.float32]
+    weights: NDArray[np.float32]
+    fallback: NDArray[np.float32] | None = None
 
     @classmethod
     def build(
@@ -105,88 +118,79 @@ class PixelWeights:
             layout = PixelLayout.build(grid_uv, projector)
         c0, c1, c2 = layout.corners
         if depth is None:
-            u, v = layout.l1, layout.l2
+            w = np.stack([layout.l0, layout.l1, layout.l2])
         else:
             # perspective-correct weights of the triangle's corners (a, b|e, e|d)
             inv_z = 1.0 / depth.reshape(-1)  # NaN without surface: the pixel shows black
-            w0 = layout.l0 * inv_z[c0]
-            w1 = layout.l1 * inv_z[c1]
-            w2 = layout.l2 * inv_z[c2]
-            total = w0 + w1 + w2
-            u, v = w1 / total, w2 / total
-        if surface is not None and depth is not None:
-            rows, cols = grid_uv.shape[:2]
-            corners = grid_triangles(rows - 1, cols - 1)
-            uo, vo = _surface_weights(grid_uv, depth, projector, corners, layout.tri, surface)
-            use = np.isfinite(uo) & np.isfinite(u)
-            u = np.where(use, uo, u)
-            v = np.where(use, vo, v)
-        return cls(layout.corners, u.astype(np.float32), v.astype(np.float32))
+            w = np.stack([layout.l0 * inv_z[c0], layout.l1 * inv_z[c1], layout.l2 * inv_z[c2]])
+            w /= w.sum(axis=0)
+        if surface is None or depth is None:
+            return cls(layout.corners, w.astype(np.float32))
+        bary = np.stack([layout.l0, layout.l1, layout.l2])
+        corners, ws = surface_weights(grid_uv, depth, projector, surface, layout.tri, bary)
+        # where the pixel's own surface point is unknown: the perspective-correct weights
+        unknown = ~np.isfinite(ws[0])
+        ws[:3, unknown] = w[:, unknown]
+        ws[3:, unknown] = 0.0
+        return cls(corners, ws.astype(np.float32), w.astype(np.float32))
+
+    def _gather(
+        self, verts: NDArray[np.float32], corners: NDArray[np.int32], weights: NDArray[np.float32]
+    ) -> NDArray[np.float32]:
+        out = np.zeros((*weights.shape[1:], 2), dtype=np.float32)
+        for k in range(weights.shape[0]):
+            for c in range(2):
+                out[..., c] += weights[k] * verts[corners[k], c]
+        return out
+
+    def checked_map(
+        self, image_xy: FloatArray, content_size: tuple[int, int], clip: bool = True
+    ) -> tuple[NDArray[np.float32], int]:
+        """:meth:`map`, and how many pixels took part of their value from the
+        perspective-correct fallback because the surface-based map folds there."""
+        verts = np.asarray(image_xy, dtype=np.float32).reshape(-1, 2)
+        out = self._gather(verts, self.corners, self.weights)
+        fell_back = 0
+        if self.fallback is not None:
+            plain = self._gather(verts, self.corners[:3], self.fallback)
+            out, fell_back = fold_guard(out, plain)
+        if not clip:
+            return out, fell_back
+        w, h = content_size
+        finite = np.isfinite(out).all(axis=2)
+        with np.errstate(invalid="ignore"):
+            inside = (
+                finite
+                & (out[..., 0] >= -0.5)
+                & (out[..., 0] <= w - 0.5)
+                & (out[..., 1] >= -0.5)
+                & (out[..., 1] <= h - 0.5)
+            )
+        # the ring of pixels just past the content's border stays (the renderer shows
+        # it black, anti-aliased): where the content is shown smaller than the pixels
+        # its outermost columns lie between the last pixel in and the first one out
+        ring = np.asarray(cv2.dilate(inside.astype(np.uint8), np.ones((3, 3), np.uint8))) > 0
+        out[~(finite & ring)] = np.nan
+        return out, fell_back
 
     def map(
         self, image_xy: FloatArray, content_size: tuple[int, int], clip: bool = True
     ) -> NDArray[np.float32]:
         """The (H, W, 2) float32 map for vertex content coordinates ``image_xy`` (R, C, 2);
-        NaN where the pixel shows black: no surface, or (``clip``) outside the content.
-        Without ``clip`` coordinates outside the content are kept (the renderer's
-        border turns them black, with an anti-aliased edge)."""
-        verts = np.asarray(image_xy, dtype=np.float32).reshape(-1, 2)
-        c0, c1, c2 = self.corners
-        out = np.empty((*self.u.shape, 2), dtype=np.float32)
-        for k in range(2):
-            vk = verts[:, k]
-            p0 = vk[c0]
-            out[..., k] = p0 + self.u * (vk[c1] - p0) + self.v * (vk[c2] - p0)
-        if not clip:
-            return out
-        w, h = content_size
-        with np.errstate(invalid="ignore"):
-            outside = (
-                ~np.isfinite(out).all(axis=2)
-                | (out[..., 0] < -0.5)
-                | (out[..., 0] > w - 0.5)
-                | (out[..., 1] < -0.5)
-                | (out[..., 1] > h - 0.5)
-            )
-        out[outside] = np.nan
-        return out
-
-
-def _surface_weights(
-    grid_uv: FloatArray,
-    depth: FloatArray,
-    projector: Projector,
-    corners: IntArray,
-    tri: IntArray,
-    surface: Surface,
-) -> tuple[FloatArray, FloatArray]:
-    """(u, v) of each pixel's own surface point, unfolded, projected on its triangle."""
-    P = (projector.rays(grid_uv) * depth[..., None]).reshape(-1, 3)
-    unfolding = unfold_creases(surface, grid_uv.reshape(-1, 2)[corners], corners, P)
-    pts = unfolding.points
-    origin = pts[:, 0]
-    e1 = pts[:, 1] - origin
-    e2 = pts[:, 2] - origin
-    with np.errstate(invalid="ignore", divide="ignore"):
-        g11 = np.sum(e1 * e1, axis=1)[:, None]
-        g12 = np.sum(e1 * e2, axis=1)[:, None]
-        g22 = np.sum(e2 * e2, axis=1)[:, None]
-        det = g11 * g22 - g12 * g12
-        # [u v] = G^-1 [e1 e2]^T (X - origin): one 2x3 matrix per triangle
-        bary = np.stack([g22 * e1 - g12 * e2, g11 * e2 - g12 * e1], axis=1) / det[:, :, None]
-    offset = np.einsum("tij,tj->ti", bary, origin)
-    X = unfolding.unfold_points(tri, surface.dense().points.astype(np.float64))
-    out = []
-    for i in range(2):
-        m = bary[:, i, :][tri]
-        out.append(
-            m[..., 0] * X[..., 0] + m[..., 1] * X[..., 1] + m[..., 2] * X[..., 2] - offset[tri, i]
-        )
-    return out[0], out[1]
+        NaN where the pixel shows black: no surface, or (``clip``) outside the content
+        by more than one pixel (the ring just outside stays, for the renderer's
+        anti-aliased edge). Without ``clip`` every coordinate outside the content is
+        kept (the renderer's border turns them black)."""
+        return self.checked_map(image_xy, content_size, clip)[0]
 
 
 def map_from_warp(warp: Warp, surface: Surface | None = None) -> NDArray[np.float32]:
     """The (H, W, 2) float32 map of content coordinates; NaN where the pixel shows black
-    (no surface under its triangle, or outside the content)."""
+    (no surface under its triangle, or outside the content). With a surface, the
+    number of pixels where the fold guard fell back is recorded in
+    ``warp.meta["display_fallback_pixels"]``."""
     weights = PixelWeights.build(warp.grid_uv, warp.depth, warp.projector, surface)
-    return weights.map(warp.image_xy, warp.content_size)
+    out, fell_back = weights.checked_map(warp.image_xy, warp.content_size)
+    if surface is not None:
+        warp.meta["display_fallback_pixels"] = fell_back
+    return out

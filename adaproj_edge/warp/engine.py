@@ -28,6 +28,8 @@ from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD, ContentMap
 from adaproj_edge.errors import InputError, WarpError
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.warp.anderson import Anderson
+from adaproj_edge.warp.guard import guard
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.orientation import unfolded
 from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
@@ -49,14 +51,23 @@ class StepSolver(Protocol):
         ...
 
 
+PaperWarp = Callable[
+    [Surface, tuple[int, int], ContentMap | None, "WarpSettings"],
+    tuple[FloatArray, dict[str, Any]],
+]
+
+
 @dataclass(frozen=True)
 class Backend:
     """The three solves; :data:`FAST` is the product, the reference backend in
-    :mod:`adaproj_edge.warp.reference` the yardstick."""
+    :mod:`adaproj_edge.warp.reference` the yardstick. ``paper``, when given, computes
+    the whole ``alternation="paper"`` warp its own way (the paper as written,
+    straightforwardly: content pixel coordinates (R*C, 2) of the vertices and meta)."""
 
     conformal: Callable[[MeshGeometry], FloatArray]
     content_free: Callable[[MeshGeometry, FloatArray, float], tuple[FloatArray, FloatArray]]
     content_aware: Callable[[MeshGeometry, ContentAwareWeights], StepSolver]
+    paper: PaperWarp | None = None
 
 
 FAST = Backend(solve_conformal, solve_content_free, ContentAwareSolver)
@@ -81,6 +92,9 @@ class WarpSettings:
     weights : the content-aware energy's weights
     alternation : "ours" (default) or "paper" (§4.2 as written: fixed boundary,
         regulariser toward the last iterate; kept for comparison)
+    adaptive : split the grid's columns and rows where the surface bends faster than
+        the grid samples it (:mod:`~adaproj_edge.warp.adaptive`; the full-grid path);
+        the warp's grid is then finer there
     """
 
     mode: Mode = "content"
@@ -92,6 +106,7 @@ class WarpSettings:
     up: tuple[float, float, float] = DEFAULT_UP
     weights: ContentAwareWeights = field(default_factory=ContentAwareWeights)
     alternation: Alternation = "ours"
+    adaptive: bool = True
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -117,6 +132,45 @@ def standard_warp(projector: Projector, content_size: tuple[int, int], grid: Gri
     return Warp(grid_uv, image_xy, content_size, proj, meta, depth=None)
 
 
+def content_aware(
+    mesh: MeshGeometry,
+    v_conformal: FloatArray,
+    placement: Placement,
+    content_map: ContentMap,
+    settings: WarpSettings,
+    backend: Backend = FAST,
+    on_step: Callable[[], None] | None = None,
+) -> tuple[FloatArray, Placement, int, float, dict[str, Any]] | None:
+    """Our ``content`` mode from the conformal positions ``v_conformal`` (n, 2) placed
+    by ``placement``; None when nothing or everything salient shows (then the
+    content-free warp E' is the answer).
+
+    The alternation (:func:`refine`) starts from the conformal warp scaled to the
+    salient region's size on the surface (its fixed point does not depend on the start;
+    on a developable surface that start is the answer), and
+    :func:`~adaproj_edge.warp.guard.guard` keeps its result only where it is no worse
+    than the conformal warp on the subject.
+
+    Returns
+    -------
+    Positions (n, 2), their placement, the steps taken, the salient vertex fraction and
+    meta (``guard``: what was kept and why).
+    """
+    w = content_map.weights(placement.apply(v_conformal))
+    if w.min() == w.max():
+        return None
+    e = mesh.edges
+    salient = (w[e[:, 0]] + w[e[:, 1]]) > 0
+    chord = np.linalg.norm(v_conformal[e[salient, 0]] - v_conformal[e[salient, 1]], axis=1)
+    scale = float(np.sum(mesh.lengths[salient]) / np.sum(chord))
+    start = Placement(placement.angle, placement.scale / scale, placement.offset, placement.centre)
+    v, aware_placement, iterations, fraction = refine(
+        mesh, v_conformal * scale, start, content_map, settings, backend, on_step
+    )
+    choice = guard(mesh, (v, aware_placement), (v_conformal, placement), content_map, settings.up)
+    return choice.v, choice.placement, iterations, fraction, {"guard": choice.meta}
+
+
 def refine(
     mesh: MeshGeometry,
     v: FloatArray,
@@ -128,33 +182,49 @@ def refine(
 ) -> tuple[FloatArray, Placement, int, float]:
     """The content-aware alternation (Algorithm 1, our energy); returns the final
     positions, their placement, the number of steps and the salient vertex fraction.
-    ``on_step`` is called after each step taken (a caller's stopwatch)."""
+    ``on_step`` is called after each step taken (a caller's stopwatch).
+
+    Rounds: the salient set (eq. 8, from the current placement) and the placement held,
+    steps (Anderson-accelerated, :mod:`~adaproj_edge.warp.anderson`) until the plain
+    step moves the vertices less than the tolerance (mean, content pixels); then the
+    content is placed again, and when that shows new salient vertices another round
+    follows. The salient set only grows (a vertex that showed salient content stays
+    salient), so the alternation cannot oscillate.
+    """
     solver: StepSolver | None = None
     iterations = 0
-    fraction = 0.0
-    w = np.zeros(mesh.n)
-    for _ in range(settings.max_iterations):
-        xy = placement.apply(v)
-        # eq. 8, with hysteresis: a vertex that showed salient content stays salient,
-        # so the salient set only grows and the alternation cannot oscillate
-        w = np.maximum(w, content_map.weights(xy).astype(np.float64))
-        fraction = float(w.mean())
-        if w.min() == w.max():  # nothing or everything salient: E' already is the answer
-            break
+    accel = Anderson()
+    # eq. 8 at the start of every round, from the placement of that moment
+    w = content_map.weights(placement.apply(v)).astype(np.float64)
+    placed = True  # the placement is that of v
+    while iterations < settings.max_iterations and w.min() != w.max():
         if solver is None:
             solver = backend.content_aware(mesh, settings.weights)
-        v_new = solver.step(v, w)
-        if not unfolded(v_new, mesh.tris):
-            break  # keep the last fold-free iterate
-        new_placement = place(mesh, v_new, content_map.content_size, settings.up, placement)
-        motion = float(np.mean(np.linalg.norm(new_placement.apply(v_new) - xy, axis=1)))
-        v, placement = v_new, new_placement
+        g = solver.step(v, w)
+        v_next = accel.next(v.ravel(), g.ravel()).reshape(-1, 2)
+        if not unfolded(v_next, mesh.tris):
+            accel.reset()
+            v_next = g  # the plain step, unless it folds too
+            if not unfolded(v_next, mesh.tris):
+                break  # keep the last fold-free iterate
+        # the plain step's length: how far the iterate still is from the fixed point
+        motion = placement.scale * float(np.mean(np.linalg.norm(g - v, axis=1)))
+        v, placed = v_next, False
         iterations += 1
         if on_step is not None:
             on_step()
         if motion < settings.tolerance:
-            break
-    return v, placement, iterations, fraction
+            # the round has settled: place the content again and look at it
+            placement = place(mesh, v, content_map.content_size, settings.up, placement)
+            placed = True
+            grown = np.maximum(w, content_map.weights(placement.apply(v)))
+            if np.array_equal(grown, w):
+                break
+            w = grown
+            accel.reset()  # a new salient set: a new fixed-point map
+    if not placed:
+        placement = place(mesh, v, content_map.content_size, settings.up, placement)
+    return v, placement, iterations, float(w.mean())
 
 
 def refine_as_paper(
@@ -202,7 +272,7 @@ def make_warp(
     themselves (the device runtime keeps solver state between updates)."""
     if not unfolded(v, mesh.tris):
         raise WarpError("the warp folds over; the surface is too irregular for this grid")
-    rows, cols = settings.grid.rows + 1, settings.grid.cols + 1
+    rows, cols = mesh.grid.rows + 1, mesh.grid.cols + 1
     image_xy = np.full((rows * cols, 2), np.nan)
     image_xy[mesh.verts] = placement.apply(v)
     depth = mesh.points[:, 2].copy()
@@ -224,4 +294,24 @@ def make_warp(
         surface.projector,
         meta,
         depth=depth.reshape(rows, cols),
+    )
+
+
+def paper_result(
+    surface: Surface,
+    content_size: tuple[int, int],
+    content_map: ContentMap,
+    settings: WarpSettings,
+    paper: PaperWarp,
+) -> Warp:
+    """The whole ``alternation="paper"`` warp made by a backend's own ``paper``."""
+    image_xy, meta = paper(surface, content_size, content_map, settings)
+    grid_uv = settings.grid.vertices(surface.projector)
+    rows, cols = grid_uv.shape[:2]
+    return Warp(
+        grid_uv,
+        image_xy.reshape(rows, cols, 2),
+        content_size,
+        surface.projector,
+        {"mode": "content", "alternation": "paper", "grid": str(settings.grid), **meta},
     )

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
-from adaproj_edge.geometry.creases import unfold_creases
+from adaproj_edge.geometry.creases import crease_probes, unfold_creases
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import (
     conformal_coords,
@@ -39,6 +39,7 @@ class Topology:
     """
 
     cand: IntArray  # (T, 3) grid vertex indices of the kept triangles
+    rows: IntArray  # (T,) their indices among all grid triangles
     used: NDArray[np.bool_]
     index: IntArray
     verts: IntArray
@@ -49,8 +50,9 @@ class Topology:
     memo: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
-    def from_triangles(cls, cand: IntArray, n_vertices: int) -> Topology:
-        """The topology of the kept triangles ``cand`` (T, 3) of a grid of ``n_vertices``."""
+    def from_triangles(cls, cand: IntArray, rows: IntArray, n_vertices: int) -> Topology:
+        """The topology of triangles ``cand`` (T, 3) (grid vertex indices; ``rows`` (T,)
+        their indices among all grid triangles) of a grid of ``n_vertices``."""
         used = np.zeros(n_vertices, dtype=bool)
         used[cand.ravel()] = True
         index = np.full(n_vertices, -1, dtype=np.intp)
@@ -59,7 +61,7 @@ class Topology:
         tris = index[cand]
         e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
         edges, inverse, counts = unique_edges(e, max(int(verts.size), 1))
-        return cls(cand, used, index, verts, tris, edges, inverse, edges[counts == 1])
+        return cls(cand, rows, used, index, verts, tris, edges, inverse, edges[counts == 1])
 
     def remember(self, name: str, make: Callable[[], T]) -> T:
         """``make()`` once per topology (solver structures)."""
@@ -114,6 +116,10 @@ class MeshGeometry:
     edges : (E, 2) undirected compact edges of the kept triangles.
     lengths : (E,) edge lengths on the surface (metres).
     boundary : (B, 2) edges on the region's boundary (holes included).
+    shapes : (T, 3, 2) each (unfolded) surface triangle in a 2D frame of its own plane
+        (metres), oriented as the content is (y down).
+    curved : (T,) bool, the triangles a curved crease runs through (their unfolding is
+        only approximate: :mod:`~adaproj_edge.warp.adaptive` refines there).
     """
 
     grid: Grid
@@ -122,6 +128,8 @@ class MeshGeometry:
     topology: Topology
     coords: FloatArray
     lengths: FloatArray
+    shapes: FloatArray
+    curved: NDArray[np.bool_]
 
     @property
     def used(self) -> NDArray[np.bool_]:
@@ -168,6 +176,20 @@ class MeshGeometry:
         """(n, 2) pixel positions of the compact vertices."""
         return self.grid_uv.reshape(-1, 2)[self.verts]
 
+    @property
+    def curved_cells(self) -> IntArray:
+        """Indices (row-major) of the grid cells a curved crease runs through."""
+        out: IntArray = np.unique(self.topology.rows[self.curved] // 2)
+        return out
+
+    @property
+    def pixel_areas(self) -> FloatArray:
+        """(T,) area of each triangle in the projector frame (pixels)."""
+        uv = self.uv[self.tris]
+        d1, d2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+        out: FloatArray = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+        return out
+
     @classmethod
     def build(
         cls,
@@ -184,8 +206,14 @@ class MeshGeometry:
             grid_uv = grid.vertices(surface.projector)
         elif grid_uv.shape != (grid.rows + 1, grid.cols + 1, 2):
             raise ValueError(f"grid_uv {grid_uv.shape} does not fit grid {grid}")
-        pts = surface.points_at(grid_uv).reshape(-1, 3)
         all_tris = grid_triangles(grid.rows, grid.cols)
+        uv = grid_uv.reshape(-1, 2)
+        # the surface at the vertices and at the crease probes of every triangle, at once
+        sampled = surface.points_at(
+            np.concatenate([uv, crease_probes(uv[all_tris]).reshape(-1, 2)])
+        )
+        pts = sampled[: uv.shape[0]]
+        probes = sampled[uv.shape[0] :].reshape(all_tris.shape[0], -1, 3)
         ok = np.all(np.isfinite(pts[all_tris]).all(axis=2), axis=1)
         normals = triangle_normals(pts[all_tris[ok]])
         # A triangle must face the projector (it was seen) and not be degenerate.
@@ -200,14 +228,14 @@ class MeshGeometry:
             )
 
         def make() -> Topology:
-            return Topology.from_triangles(
-                _largest_component(all_tris[keep], pts.shape[0]), pts.shape[0]
-            )
+            rows = _largest_component(all_tris, np.flatnonzero(keep), pts.shape[0])
+            return Topology.from_triangles(all_tris[rows], rows, pts.shape[0])
 
         key = f"{grid.cols}x{grid.rows}:".encode() + np.packbits(keep).tobytes()
         topo = make() if cache is None else cache.topology(key, make)
         cand = topo.cand
-        tri_pts = unfold_creases(surface, grid_uv.reshape(-1, 2)[cand], cand, pts).points
+        unfolding = unfold_creases(surface, uv[cand], cand, pts, probes[topo.rows])
+        tri_pts = unfolding.points
         coords = conformal_coords(tri_pts)
         # edge lengths as the (unfolded) triangles have them; an edge shared by two
         # triangles gets the mean of their two values
@@ -215,18 +243,40 @@ class MeshGeometry:
         n_edges = topo.edges.shape[0]
         sums = np.bincount(topo.inverse, weights=tri_len.T.ravel(), minlength=n_edges)
         counts = np.bincount(topo.inverse, minlength=n_edges)
-        return cls(grid, grid_uv, pts, topo, coords, sums / counts)
+        curved = unfolding.folded & (unfolding.softness > 0)
+        return cls(grid, grid_uv, pts, topo, coords, sums / counts, planar_shapes(tri_pts), curved)
 
 
-def _largest_component(tris: IntArray, n_vertices: int) -> IntArray:
-    """The triangles of the largest vertex-connected component (by triangle count)."""
+def planar_shapes(tri_pts: FloatArray) -> FloatArray:
+    """Triangles (T, 3, 3) in 2D frames of their own planes (T, 3, 2): corner 0 at the
+    origin, corner 1 on the +x axis, corner 2 on the side the content's y axis has
+    (content y points down, as for the projector's pixels)."""
+    e1 = tri_pts[:, 1] - tri_pts[:, 0]
+    e2 = tri_pts[:, 2] - tri_pts[:, 0]
+    l1 = np.linalg.norm(e1, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x2 = np.sum(e1 * e2, axis=1) / l1
+    y2 = np.sqrt(np.maximum(np.sum(e2 * e2, axis=1) - x2 * x2, 0.0))
+    out = np.zeros((tri_pts.shape[0], 3, 2))
+    out[:, 1, 0] = l1
+    out[:, 2, 0] = x2
+    out[:, 2, 1] = y2
+    return out
+
+
+def _largest_component(all_tris: IntArray, rows: IntArray, n_vertices: int) -> IntArray:
+    """The ``rows`` of ``all_tris`` (a grid's triangles) in the largest vertex-connected
+    component of the triangles ``all_tris[rows]`` (by triangle count)."""
+    if rows.size == all_tris.shape[0]:
+        return rows  # the whole grid: one piece
+    tris = all_tris[rows]
     e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]]])
     graph = scipy.sparse.coo_matrix(
         (np.ones(e.shape[0]), (e[:, 0], e[:, 1])), shape=(n_vertices, n_vertices)
     )
     ncomp, labels = scipy.sparse.csgraph.connected_components(graph, directed=False)
     if ncomp == 1:
-        return tris
+        return rows
     per_tri = labels[tris[:, 0]]
-    keep: IntArray = tris[per_tri == int(np.argmax(np.bincount(per_tri)))]
+    keep: IntArray = rows[per_tri == int(np.argmax(np.bincount(per_tri)))]
     return keep

@@ -18,7 +18,6 @@ from adaproj_edge.geometry.triangles import cross, triangle_normals
 from adaproj_edge.warp.mesh import MeshGeometry
 
 DEFAULT_UP = (0.0, -1.0, 0.0)  # "up" in frame P when the projector is held level
-TURNED_RAD = 0.01  # content turned by more than this (a rolled device): centred placement
 
 
 @dataclass(frozen=True)
@@ -89,11 +88,12 @@ def place(
     """Upright rotation and inscribed-rectangle similarity for positions ``v`` (n, 2).
 
     With ``previous`` (the placement of a nearby iterate) its rotation is kept and the
-    rectangle search starts from its centre: the alternation's cheap placement. Content
-    turned upright in a rolled projector's frame (by more than ``TURNED_RAD``) is
-    centred on the covered region when that costs at most ``NEAR`` of its size: the
-    largest rectangle of a turned region slides along a ridge from frame to frame
-    (:mod:`adaproj_edge.geometry.rectangle`).
+    rectangle search starts from its centre: the alternation's cheap placement. The
+    content is centred on the covered region when that costs at most ``NEAR`` of its
+    size (:mod:`adaproj_edge.geometry.rectangle`): where the largest rectangle can
+    slide (content of another aspect than the region, a tilted wall, a region turned in
+    a rolled projector's frame) a person expects it in the middle, and consecutive
+    frames do not jump between the ends of a ridge.
     """
     if previous is None:
         angle = upright_angle(mesh, v, np.asarray(up, dtype=np.float64))
@@ -103,8 +103,7 @@ def place(
     rot = Placement(angle, 1.0, np.zeros(2))
     vr = rot.apply(v)
     w, h = content_size
-    near = NEAR if abs(angle) > TURNED_RAD else 0.0
-    rect = inscribed_rectangle(vr, mesh.tris, w / h, boundary=mesh.boundary, start=start, near=near)
+    rect = inscribed_rectangle(vr, mesh.tris, w / h, boundary=mesh.boundary, start=start, near=NEAR)
     scale = w / rect.width
     # content pixel centres at integers: the rectangle's corner is pixel (-0.5, -0.5)
     offset = np.array([-0.5 - scale * rect.x0, -0.5 - scale * rect.y0])

@@ -28,6 +28,17 @@ Video frames (``refine(..., frame_dt=dt)``)
     :class:`~adaproj_edge.warp.temporal.WarpSmoother`, so the warp follows a moving
     subject smoothly and stands still on a still scene (:mod:`adaproj_edge.warp.temporal`).
 
+Full grid (``refine_factor`` 1, :func:`compute_warp`)
+    The grid is first refined where the surface bends faster than it samples it
+    (``WarpSettings.adaptive``, :mod:`~adaproj_edge.warp.adaptive`); our alternation
+    starts from the conformal warp (:func:`~adaproj_edge.warp.engine.content_aware`,
+    no content-free solve needed when some but not all content is salient).
+
+Never worse than conformal
+    Every content-aware result (full grid or coarse) is checked against the conformal
+    warp on the salient region by :func:`~adaproj_edge.warp.guard.guard`; ``meta``
+    ``guard`` says what was kept and why.
+
 :func:`compute_warp` is the one-shot call (the CLI, the renderer, the replay's
 ground truth): a planner with the full-grid refinement and no state kept.
 
@@ -39,6 +50,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,16 +60,20 @@ from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.warp.adaptive import adaptive_mesh
 from adaproj_edge.warp.coarse import coarse_indices, upsample_field
 from adaproj_edge.warp.engine import (
     FAST,
     Backend,
     WarpSettings,
+    content_aware,
     make_warp,
+    paper_result,
     refine,
     refine_as_paper,
     standard_warp,
 )
+from adaproj_edge.warp.guard import guard, guard_grid
 from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
 from adaproj_edge.warp.orientation import fold_count
 from adaproj_edge.warp.placement import Placement, place
@@ -86,6 +102,10 @@ class ContentFreeWarp:
         The content's placement on ``v``.
     verts : (n,) int array
         The full-grid indices of the mesh's vertices.
+    conformal_placement : Placement
+        The content's placement on ``v_conformal`` (the guard's yardstick).
+    mesh : MeshGeometry
+        The full grid's mesh (what a coarse refinement is guarded on).
     """
 
     warp: Warp
@@ -94,6 +114,8 @@ class ContentFreeWarp:
     v: FloatArray
     placement: Placement
     verts: IntArray
+    conformal_placement: Placement
+    mesh: MeshGeometry
 
     def matches(self, depth: FloatArray, max_rel: float, min_overlap: float) -> bool:
         """Whether the lattice ``depth`` is (nearly) the surface this warp was made for
@@ -195,11 +217,22 @@ class WarpPlanner:
     ) -> Warp:
         """E_a alone with uniform weights (the iLamps-style baseline)."""
         settings = replace(settings, grid=self.grid)
-        surface.check_usable()
-        mesh = MeshGeometry.build(surface, self.grid, self.cache)
+        mesh, extra = self._mesh(surface, settings)
         v = self.backend.conformal(mesh)
         placement = place(mesh, v, content_size, settings.up)
-        return make_warp(mesh, v, placement, surface, content_size, settings, 0, 0.0)
+        warp = make_warp(mesh, v, placement, surface, content_size, settings, 0, 0.0)
+        warp.meta.update(extra)
+        return warp
+
+    def _mesh(
+        self, surface: Surface, settings: WarpSettings
+    ) -> tuple[MeshGeometry, dict[str, Any]]:
+        """The full-grid mesh, refined where the surface bends faster than the grid
+        samples it (``settings.adaptive``; full-grid planners only: the device's
+        coarse-to-fine path keeps its grid); meta says how."""
+        surface.check_usable()
+        adaptive = settings.adaptive and self.plan_settings.refine_factor <= 1
+        return adaptive_mesh(surface, self.grid, self.cache, adaptive)
 
     def content_free(
         self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
@@ -213,14 +246,25 @@ class WarpPlanner:
         self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
     ) -> tuple[ContentFreeWarp, MeshGeometry]:
         settings = replace(settings, grid=self.grid)
-        surface.check_usable()
-        mesh = MeshGeometry.build(surface, self.grid, self.cache)
-        v_conf = self.backend.conformal(mesh)
+        mesh, extra, v_conf, p_conf = self._conformal_start(surface, content_size, settings)
         v, _ = self.backend.content_free(mesh, v_conf, settings.lam)
         placement = place(mesh, v, content_size, settings.up)
         warp = make_warp(mesh, v, placement, surface, content_size, settings, 0, 0.0)
+        warp.meta.update(extra)
         depth = _surface_depth(surface)
-        return ContentFreeWarp(warp, depth, v_conf, v, placement, mesh.verts.copy()), mesh
+        return (
+            ContentFreeWarp(warp, depth, v_conf, v, placement, mesh.verts.copy(), p_conf, mesh),
+            mesh,
+        )
+
+    def _conformal_start(
+        self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
+    ) -> tuple[MeshGeometry, dict[str, Any], FloatArray, Placement]:
+        """The mesh (and its meta), the conformal positions and their placement: what
+        our alternation starts from and the guard's yardstick."""
+        mesh, extra = self._mesh(surface, settings)
+        v_conf = self.backend.conformal(mesh)
+        return mesh, extra, v_conf, place(mesh, v_conf, content_size, settings.up)
 
     def refine(
         self,
@@ -239,10 +283,9 @@ class WarpPlanner:
         held = None if frame_dt is None else self.smoother.held(content_map, start)
         if held is not None and frame_dt is not None:  # the content stands still: so
             return self.smoother.smooth(held, start, frame_dt)  # does the warp
-        fine = start.warp
-        coarse = self.plan_settings.refine_factor > 1
-        coarse_uv = fine.grid_uv[np.ix_(self.rows, self.cols)] if coarse else fine.grid_uv
-        mesh = MeshGeometry.build(surface, self.coarse_grid, self.cache, coarse_uv)
+        rows, cols, grid = self._refinement_grid(start)
+        coarse_uv = start.warp.grid_uv[np.ix_(rows, cols)]
+        mesh = MeshGeometry.build(surface, grid, self.cache, coarse_uv)
         depth = _surface_depth(surface)
         if frame_dt is None:
             return self._refine(mesh, depth, content_map, settings, start, on_step)
@@ -265,25 +308,51 @@ class WarpPlanner:
         the surface of lattice ``depth``."""
         fine = start.warp
         factor = self.plan_settings.refine_factor
-        coarse_settings = replace(settings, grid=self.coarse_grid)
+        c_rows, c_cols, grid = self._refinement_grid(start)
+        coarse_settings = replace(settings, grid=grid)
         fine_cols = fine.grid_uv.shape[1]
-        to_fine = (self.rows[:, None] * fine_cols + self.cols[None, :]).ravel()
+        to_fine = (c_rows[:, None] * fine_cols + c_cols[None, :]).ravel()
         v, placement, warm = self._start(mesh, start, to_fine, depth, content_map, settings)
+        v_conf = self._on_mesh(start.v_conformal, start, to_fine, mesh.verts)
+        extra: dict[str, Any] = {}
         if warm:
             p = self.plan_settings
             steps = p.warm_iterations if frame_dt is None else p.temporal.steps
             coarse_settings = replace(
                 coarse_settings, max_iterations=min(settings.max_iterations, steps)
             )
+        known = bool(np.isfinite(v_conf).all())
+        # a clip's frames go on from a guarded first solve: guarding each frame anew
+        # would switch between warps from one frame to the next
+        in_clip = warm and frame_dt is not None
         if settings.alternation == "paper":
-            v_conf = self._on_mesh(start.v_conformal, start, to_fine, mesh.verts)
-            if not np.isfinite(v_conf).all():
+            if not known:
                 v_conf = self.backend.conformal(mesh)
             v, its, frac = refine_as_paper(mesh, v_conf, v, placement, content_map, coarse_settings)
+        elif known and not warm and factor <= 1:
+            # our alternation from the conformal warp, guarded (engine.content_aware)
+            p_conf = start.conformal_placement
+            ours = content_aware(
+                mesh, v_conf, p_conf, content_map, coarse_settings, self.backend, on_step
+            )
+            if ours is None:  # nothing or everything salient: E' is the answer
+                its, frac = 0, float(content_map.weights(placement.apply(v)).mean())
+            else:
+                v, placement, its, frac, guarded = ours
+                extra.update(guarded)
         else:
             v, placement, its, frac = refine(
                 mesh, v, placement, content_map, coarse_settings, self.backend, on_step
             )
+            if known and factor <= 1 and not in_clip:
+                choice = guard(
+                    mesh,
+                    (v, placement),
+                    (v_conf, start.conformal_placement),
+                    content_map,
+                    settings.up,
+                )
+                v, placement, extra["guard"] = choice.v, choice.placement, choice.meta
         if self.plan_settings.warm_start:
             self._last = _Solution(v, placement, mesh.verts.copy(), start, depth)
         coarse_xy = np.full((to_fine.size, 2), np.nan)
@@ -293,15 +362,24 @@ class WarpPlanner:
             image_xy = coarse_xy.reshape(rows, cols, 2)
         else:
             delta = (
-                coarse_xy.reshape(self.rows.size, self.cols.size, 2)
-                - fine.image_xy[np.ix_(self.rows, self.cols)]
+                coarse_xy.reshape(c_rows.size, c_cols.size, 2)
+                - fine.image_xy[np.ix_(c_rows, c_cols)]
             )
-            image_xy = fine.image_xy + upsample_field(delta, self.rows, self.cols, (rows, cols))
+            image_xy = fine.image_xy + upsample_field(delta, c_rows, c_cols, (rows, cols))
+            if not in_clip:
+                image_xy, extra["guard"] = guard_grid(
+                    image_xy,
+                    start.mesh,
+                    (start.v_conformal, start.conformal_placement),
+                    content_map,
+                    settings.up,
+                )
         meta = {
             **fine.meta,
             "alternation": settings.alternation,
             "iterations": its,
             "salient_vertex_fraction": frac,
+            **extra,
         }
         if factor > 1:
             meta["refine_grid"] = str(self.coarse_grid)
@@ -330,6 +408,23 @@ class WarpPlanner:
             return self.standard(content_size)
         if settings.mode == "conformal":
             return self.conformal(surface, content_size, settings)
+        if settings.alternation == "paper" and self.backend.paper and content_map is not None:
+            return paper_result(surface, content_size, content_map, settings, self.backend.paper)
+        if (
+            self.plan_settings.refine_factor <= 1
+            and content_map is not None
+            and settings.alternation == "ours"
+        ):
+            # the full grid: our alternation needs no content-free solve when some but
+            # not all content is salient (what content_free + refine give, sooner)
+            full = replace(settings, grid=self.grid)
+            mesh, extra, v_conf, p_conf = self._conformal_start(surface, content_size, full)
+            ours = content_aware(mesh, v_conf, p_conf, content_map, full, self.backend)
+            if ours is not None:
+                v, placement, its, frac, guarded = ours
+                warp = make_warp(mesh, v, placement, surface, content_size, full, its, frac)
+                warp.meta.update(extra, **guarded)
+                return warp
         start, mesh = self._content_free(surface, content_size, settings)
         if content_map is None:
             return start.warp
@@ -339,6 +434,14 @@ class WarpPlanner:
         return self._refine(mesh, start.depth, content_map, settings, start)
 
     # ------------------------------------------------------------------ helpers
+    def _refinement_grid(self, start: ContentFreeWarp) -> tuple[IntArray, IntArray, Grid]:
+        """The refinement grid's fine rows and columns and its Grid: every fine vertex
+        of ``start``'s (maybe adaptively refined) grid, or the coarse subset."""
+        if self.plan_settings.refine_factor > 1:
+            return self.rows, self.cols, self.coarse_grid
+        rows, cols = start.warp.grid_uv.shape[:2]
+        return np.arange(rows), np.arange(cols), Grid(cols=cols - 1, rows=rows - 1)
+
     def _on_mesh(
         self, v_fine: FloatArray, start: ContentFreeWarp, to_fine: IntArray, verts: IntArray
     ) -> FloatArray:

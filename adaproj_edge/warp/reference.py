@@ -1,22 +1,35 @@
-"""The straightforward implementation, kept as the yardstick for the fast solver.
+"""The straightforward implementations, kept as yardsticks for the fast engine.
 
-The same energies as :mod:`adaproj_edge.warp.solve`, assembled the way the paper
-describes its implementation: every iteration loops over the terms, collects sparse
-triplets, forms the normal equations and calls ``scipy.sparse.linalg.spsolve``. It is
-readable and obviously right, and slow; tests check that the fast solver gives the same
-answer, and ``tools/bench_warp.py`` measures both in the same run.
+:data:`REFERENCE` has the same energies as :mod:`adaproj_edge.warp.solve`, assembled
+the way the paper describes its implementation: every iteration loops over the terms,
+collects sparse triplets, forms the normal equations and calls
+``scipy.sparse.linalg.spsolve``. It is readable and obviously right, and slow; tests
+check that the fast solver gives the same answer.
+
+:func:`paper_warp` is the paper as written, end to end (§4, Algorithm 1): E_a alone and
+then E' = E_a + lambda E_r with two corner vertices pinned at (0, 0) and (1, gamma)
+(eq. 7), the similarity that makes the content the maximal inscribed rectangle
+(§4.1, same orientation), then the alternation of eq. 8-9 (boundary fixed, the
+regulariser toward the last iterate) solved with ``spsolve`` at every step until the
+mean vertex motion is below the tolerance (0.05 content pixels) or after 10 steps.
+``tools/bench_warp.py`` times :func:`~adaproj_edge.warp.planner.compute_warp` against it
+(``compute_warp(..., WarpSettings(alternation="paper"), REFERENCE)`` runs it).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
-from adaproj_edge.arrays import FloatArray
-from adaproj_edge.warp.engine import Backend
+from adaproj_edge.arrays import FloatArray, IntArray
+from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.geometry.rectangle import inscribed_rectangle
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.warp.engine import Backend, WarpSettings
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.solve import (
     ContentAwareWeights,
@@ -25,6 +38,7 @@ from adaproj_edge.warp.solve import (
     edge_directions,
     gauge_vertices,
 )
+from adaproj_edge.warp.warpmap import Grid
 
 
 class _Assembler:
@@ -59,7 +73,76 @@ class _Assembler:
         return x
 
 
-def _conformal(asm: _Assembler, mesh: MeshGeometry, stride: int, apex_weight: FloatArray) -> None:
+class _Mesh(Protocol):
+    """What the term-by-term assembly reads of a mesh."""
+
+    @property
+    def tris(self) -> IntArray: ...
+
+    @property
+    def coords(self) -> FloatArray: ...
+
+    @property
+    def edges(self) -> IntArray: ...
+
+    @property
+    def lengths(self) -> FloatArray: ...
+
+
+@dataclass(frozen=True)
+class PaperMesh:
+    """The grid mesh as the paper sets it up (§3.2), independently of the engine's
+    :class:`~adaproj_edge.warp.mesh.MeshGeometry`: the surface at the grid vertices, the
+    triangles whose corners all meet it, ``alpha, beta`` of eq. 2 for every role, the
+    edges and their lengths on the surface, the boundary edges."""
+
+    verts: IntArray  # (n,) grid index of each vertex
+    tris: IntArray  # (T, 3) vertex indices
+    coords: FloatArray  # (T, 3, 2) alpha, beta per role
+    edges: IntArray  # (E, 2)
+    lengths: FloatArray  # (E,)
+    boundary: IntArray  # (B, 2)
+
+    @property
+    def n(self) -> int:
+        """Number of mesh vertices."""
+        return int(self.verts.size)
+
+
+def paper_mesh(surface: Surface, grid: Grid) -> PaperMesh:
+    """Set up the mesh of ``grid`` on ``surface`` straightforwardly (numpy over all
+    triangles at once; no crease unfolding, which the paper does not have)."""
+    uv = grid.vertices(surface.projector)
+    points = surface.points_at(uv).reshape(-1, 3)
+    cols = grid.cols + 1
+    r, c = np.mgrid[0 : grid.rows, 0 : grid.cols]
+    a = (r * cols + c).ravel()
+    b, d, e = a + 1, a + cols, a + cols + 1
+    cand = np.concatenate([np.stack([a, b, e], 1), np.stack([a, e, d], 1)])  # diagonal split
+    p = points[cand]
+    normal = -np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    ok = np.all(np.isfinite(p), axis=(1, 2))
+    ok[ok] = np.sum(normal[ok] * p[ok].mean(axis=1), axis=1) < 0  # facing the projector
+    corners = cand[ok]
+    verts, tris = np.unique(corners, return_inverse=True)
+    tris = tris.reshape(-1, 3)
+    p = points[verts][tris]
+    normal = normal[ok] / np.linalg.norm(normal[ok], axis=1, keepdims=True)
+    coords = np.zeros((tris.shape[0], 3, 2))
+    for k in range(3):  # eq. 2: P1 = P2 + alpha (P3 - P2) + beta R90 (P3 - P2)
+        p1, p2, p3 = p[:, k], p[:, (k + 1) % 3], p[:, (k + 2) % 3]
+        edge = p3 - p2
+        ee = np.sum(edge * edge, axis=1)
+        coords[:, k, 0] = np.sum((p1 - p2) * edge, axis=1) / ee
+        coords[:, k, 1] = np.sum((p1 - p2) * np.cross(normal, edge), axis=1) / ee
+    sides = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+    edges, uses = np.unique(sides, axis=0, return_counts=True)
+    pts = points[verts]
+    lengths = np.linalg.norm(pts[edges[:, 0]] - pts[edges[:, 1]], axis=1)
+    return PaperMesh(verts, tris, coords, edges, lengths, edges[uses == 1])
+
+
+def _conformal(asm: _Assembler, mesh: _Mesh, stride: int, apex_weight: FloatArray) -> None:
     for t, tri in enumerate(mesh.tris):
         for k in range(3):
             i1, i2, i3 = int(tri[k]), int(tri[(k + 1) % 3]), int(tri[(k + 2) % 3])
@@ -74,7 +157,7 @@ def _conformal(asm: _Assembler, mesh: MeshGeometry, stride: int, apex_weight: Fl
 
 def _relative_size(
     asm: _Assembler,
-    mesh: MeshGeometry,
+    mesh: _Mesh,
     dirs: FloatArray,
     edge_weight: FloatArray,
     smooth_weight: FloatArray,
@@ -143,11 +226,13 @@ class ReferenceContentAwareSolver:
             target = mesh.lengths[e] * dirs[e]
             for c in range(2):
                 asm.row(cw.size * both, [(2 * i + c, 1.0), (2 * j + c, -1.0)], float(target[c]))
-            nx, ny = float(dirs[e, 1]), float(-dirs[e, 0])
-            asm.row(
-                cw.size_floor * (2.0 - both),
-                [(2 * i, nx), (2 * i + 1, ny), (2 * j, -nx), (2 * j + 1, -ny)],
-            )
+            old = v[i] - v[j]  # the edge as it is: the floor rows hold it there
+            for c in range(2):
+                asm.row(
+                    cw.size_floor * (2.0 - both),
+                    [(2 * i + c, 1.0), (2 * j + c, -1.0)],
+                    float(old[c]),
+                )
         l2 = float(np.mean(mesh.lengths**2))
         for i in range(n):
             for c in range(2):
@@ -157,6 +242,96 @@ class ReferenceContentAwareSolver:
         return asm.solve(2 * n, fixed).reshape(-1, 2)
 
 
+def paper_warp(
+    surface: Surface,
+    content_size: tuple[int, int],
+    content_map: ContentMap | None,
+    settings: WarpSettings,
+) -> tuple[FloatArray, dict[str, Any]]:
+    """The paper's method as written, straightforwardly (see the module docstring).
+
+    Returns content pixel coordinates (R*C, 2) of the grid vertices (NaN without
+    surface) and ``meta`` (iterations, salient fraction).
+    """
+    mesh = paper_mesh(surface, settings.grid)
+    n = mesh.n
+    w, h = content_size
+    gamma = h / w
+    first, last = 0, n - 1  # V_0 and V_|V|: the first and last vertex of the grid
+    # E_a alone (lambda = 0), the two corners pinned: the edge directions of eq. 12
+    asm = _Assembler()
+    _conformal(asm, mesh, 2, np.ones(n))
+    pins2 = {2 * first: 0.0, 2 * first + 1: 0.0, 2 * last: 1.0, 2 * last + 1: gamma}
+    v_a = asm.solve(2 * n, pins2).reshape(n, 2)
+    d_edges, _ = directed(mesh.edges, mesh.lengths)
+    dirs = edge_directions(v_a, d_edges)
+    l2 = float(np.mean(mesh.lengths**2))
+    # eq. 7: E' (all w_a = 1) with the auxiliary scales
+    asm = _Assembler()
+    _conformal(asm, mesh, 3, np.ones(n))
+    _relative_size(
+        asm,
+        mesh,
+        dirs,
+        np.full(d_edges.shape[0], settings.lam),
+        np.full(mesh.edges.shape[0], settings.lam * 2 * l2),
+    )
+    pins3 = {3 * first: 0.0, 3 * first + 1: 0.0, 3 * last: 1.0, 3 * last + 1: gamma}
+    x = asm.solve(3 * n, pins3).reshape(n, 3)
+    v0 = x[:, :2].copy()
+    # §4.1: the content rectangle becomes the maximal inscribed one, same orientation
+    rect = inscribed_rectangle(v0, mesh.tris, w / h, boundary=mesh.boundary, near=0.0)
+    scale = w / rect.width
+    origin = np.array([rect.x0, rect.y0])
+
+    def to_pixels(v: FloatArray) -> FloatArray:
+        out: FloatArray = (v - origin) * scale - 0.5
+        return out
+
+    boundary = np.unique(mesh.boundary)
+    v = v0
+    iterations = 0
+    fraction = 0.0
+    if content_map is not None:
+        for _ in range(settings.max_iterations):
+            xy = to_pixels(v)
+            c = content_map.sample(xy).astype(np.float64)
+            wa = (c >= settings.threshold).astype(np.float64)  # eq. 8
+            fraction = float(wa.mean())
+            if wa.min() == wa.max():
+                break
+            asm = _Assembler()
+            _conformal(asm, mesh, 3, wa + 1e-6)
+            _relative_size(
+                asm,
+                mesh,
+                dirs,
+                np.full(d_edges.shape[0], settings.lam),
+                settings.lam * l2 * (wa[mesh.edges[:, 0]] + wa[mesh.edges[:, 1]]),
+            )
+            for i in range(n):  # the regulariser of eq. 9 (and a trace: definite)
+                reg = max(1.0 - float(c[i]), 0.0) + 1e-6
+                asm.row(reg, [(3 * i, 1.0)], float(v[i, 0]))
+                asm.row(reg, [(3 * i + 1, 1.0)], float(v[i, 1]))
+            fixed = {}
+            for i in boundary:  # eq. 9: the boundary stays where the initial solution put it
+                fixed[3 * int(i)] = float(v0[i, 0])
+                fixed[3 * int(i) + 1] = float(v0[i, 1])
+            v_new = asm.solve(3 * n, fixed).reshape(n, 3)[:, :2]
+            motion = float(np.mean(np.linalg.norm(to_pixels(v_new) - xy, axis=1)))
+            v = v_new
+            iterations += 1
+            if motion < settings.tolerance:
+                break
+    image_xy = np.full(((settings.grid.rows + 1) * (settings.grid.cols + 1), 2), np.nan)
+    image_xy[mesh.verts] = to_pixels(v)
+    meta = {"iterations": iterations, "salient_vertex_fraction": fraction}
+    return image_xy, meta
+
+
 REFERENCE = Backend(
-    solve_conformal_reference, solve_content_free_reference, ReferenceContentAwareSolver
+    solve_conformal_reference,
+    solve_content_free_reference,
+    ReferenceContentAwareSolver,
+    paper_warp,
 )

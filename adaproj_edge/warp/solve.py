@@ -16,7 +16,7 @@ from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
 from adaproj_edge.warp import terms
 from adaproj_edge.warp.mesh import MeshGeometry
-from adaproj_edge.warp.system import BandedLeastSquares, Rows
+from adaproj_edge.warp.system import BandedLeastSquares, ComplexLeastSquares, Rows
 
 
 @dataclass(frozen=True)
@@ -27,8 +27,8 @@ class ContentAwareWeights:
         E_a weight is ``1 + conformal_salient * w``.
     size : weight of the salient edges' length-and-direction rows (E_r with one common
         scale); the rows are lengths, like the E_a rows, so the two compare directly.
-    size_floor : weight of the non-salient edges' direction rows (they only damp the
-        rotation of the rest of the mesh).
+    size_floor : weight of the non-salient edges' rows toward their previous vectors
+        (they only steady the iteration: they vanish at its fixed point).
     damping : weight of ``|V_i - V_i^(n)|^2`` on every vertex, per unit edge length^2.
 
     Defaults: the salient region is made a few hundred times stiffer than the rest, in
@@ -69,22 +69,22 @@ def _pin_positions(mesh: MeshGeometry, a: int, b: int) -> tuple[FloatArray, Floa
 def solve_conformal(mesh: MeshGeometry) -> FloatArray:
     """E_a only, uniform weights, two vertices pinned: the iLamps-style conformal warp.
 
+    Solved over complex unknowns (:class:`~adaproj_edge.warp.system.ComplexLeastSquares`).
     Returns (n, 2) positions in surface units.
     """
     n = mesh.n
-    rows = terms.conformal_rows(mesh.tris, mesh.coords, stride=2)
+    cols, vals = terms.complex_conformal_rows(mesh.tris, mesh.coords)
     a, b = gauge_vertices(mesh)
-    fixed = np.zeros(2 * n, dtype=bool)
-    fixed[[2 * a, 2 * a + 1, 2 * b, 2 * b + 1]] = True
-    x_fixed = np.zeros(2 * n)
+    fixed = np.zeros(n, dtype=bool)
+    fixed[[a, b]] = True
+    z_fixed = np.zeros(n, dtype=np.complex128)
     pa, pb = _pin_positions(mesh, a, b)
-    x_fixed[2 * a : 2 * a + 2] = pa
-    x_fixed[2 * b : 2 * b + 2] = pb
-    system = mesh.topology.remember(
-        "conformal", lambda: BandedLeastSquares(rows.cols, 2 * n, fixed)
-    )
-    x = system.solve(rows.vals, rows.rhs, np.ones(rows.rhs.size), x_fixed)
-    return x.reshape(n, 2)
+    z_fixed[a] = pa[0] + 1j * pa[1]
+    z_fixed[b] = pb[0] + 1j * pb[1]
+    system = mesh.topology.remember("conformal", lambda: ComplexLeastSquares(cols, n, fixed))
+    system.factor(vals, np.ones(cols.shape[0]))
+    z = system.solve(np.zeros(cols.shape[0], dtype=np.complex128), z_fixed)
+    return np.stack([z.real, z.imag], axis=1)
 
 
 def edge_directions(v: FloatArray, edges: IntArray) -> FloatArray:
@@ -150,20 +150,24 @@ class ContentAwareSolver:
 
     ``sum_roles (1 + c w_apex) |E_a residual|^2``
     ``+ size sum_edges (w_i + w_j) |V_i - V_j - l_ij v_ij|^2``
-    ``+ floor sum_edges (2 - w_i - w_j) (n_ij . (V_i - V_j))^2``
+    ``+ floor sum_edges (2 - w_i - w_j) |V_i - V_j - (V_i^(n) - V_j^(n))|^2``
     ``+ L^2 damping sum_i |V_i - V_i^(n)|^2``
 
-    with ``v_ij`` (unit, normal ``n_ij``) the edge's direction in V^(n) (re-linearised
-    every step, as in as-rigid-as-possible deformation) and L the mean edge length.
+    with ``v_ij`` the edge's unit direction in V^(n) (re-linearised every step, as in
+    as-rigid-as-possible deformation) and L the mean edge length. The last two terms
+    vanish at a fixed point (they only steady the iteration), so the alternation
+    converges to a stationary point of
+    ``sum (1 + c w) |E_a|^2 + size sum (w_i + w_j) (|V_i - V_j| - l_ij)^2``.
 
     This is the paper's E_r with its auxiliary scales tied to one common value on the
     salient region: ``s_i = 1`` there (every salient object gets the same scale, so
-    separate objects keep their relative sizes) and free elsewhere, where eq. 11 then
-    constrains only the edge's direction. Unlike the paper, the boundary is free (no
-    content is lost: the placement re-inscribes the content rectangle after every
-    step) and non-salient vertices are not pinned to the previous iterate: they follow
-    the conformal term, so they absorb the size change the salient region refuses.
-    With the scales eliminated the system has two unknowns per vertex, not three.
+    separate objects keep their relative sizes) and free elsewhere. Unlike the paper,
+    the boundary is free (no content is lost: the placement re-inscribes the content
+    rectangle) and non-salient vertices are not pinned to the previous iterate: they
+    follow the conformal term, so they absorb the size change the salient region
+    refuses. The scales eliminated, the unknowns are one complex number per vertex;
+    every term's coefficients depend on the saliency alone, so the system is factored
+    once per salient set and each further step is one back-substitution.
     """
 
     mesh: MeshGeometry
@@ -172,50 +176,77 @@ class ContentAwareSolver:
     def __post_init__(self) -> None:
         mesh = self.mesh
         n = mesh.n
-        self.blocks = [
-            terms.conformal_rows(mesh.tris, mesh.coords, stride=2),
-            terms.edge_rows(mesh.edges),
-            terms.edge_normal_rows(mesh.edges),
-            terms.position_rows(n, stride=2),
+        blocks = [
+            terms.complex_conformal_rows(mesh.tris, mesh.coords),
+            terms.complex_edge_rows(mesh.edges),
+            terms.complex_position_rows(n),
         ]
-        self.rows = Rows.concat(self.blocks)
-        self.offsets = np.concatenate([[0], np.cumsum([b.rhs.size for b in self.blocks])])
+        self.sizes = [b[0].shape[0] for b in blocks]
+        cols = np.full((sum(self.sizes), 3), -1, dtype=np.intp)
+        self.vals = np.zeros((sum(self.sizes), 3), dtype=np.complex128)
+        start = 0
+        for c, v in blocks:
+            cols[start : start + c.shape[0], : c.shape[1]] = c
+            self.vals[start : start + c.shape[0], : c.shape[1]] = v
+            start += c.shape[0]
         a, _ = gauge_vertices(mesh)
         self.pinned = a
-        fixed = np.zeros(2 * n, dtype=bool)
-        fixed[[2 * a, 2 * a + 1]] = True
-        cols = self.rows.cols
+        fixed = np.zeros(n, dtype=bool)
+        fixed[a] = True
         self.system = mesh.topology.remember(
-            "content-aware", lambda: BandedLeastSquares(cols, 2 * n, fixed)
+            "content-aware", lambda: ComplexLeastSquares(cols, n, fixed)
         )
         self.l2 = float(np.mean(mesh.lengths**2))
-        # apex vertex of each conformal row: rows are (triangle, role, component)
-        self.apex = np.repeat(mesh.tris, 2, axis=1).reshape(-1)
+        self.apex = mesh.tris.reshape(-1)  # rows are (triangle, role): role k's apex is k
+        self._const = np.zeros(sum(self.sizes), dtype=np.complex128)
+        self._w: FloatArray | None = None
+        self._length_share = self._keep_share = self._row_weights = np.zeros(0)
 
-    def _block(self, k: int) -> slice:
-        return slice(int(self.offsets[k]), int(self.offsets[k + 1]))
+    def row_weights(self, w: FloatArray) -> FloatArray:
+        """The weight (m,) of every row for saliency ``w`` (n,)."""
+        cw = self.weights
+        ei, ej = self.mesh.edges[:, 0], self.mesh.edges[:, 1]
+        both = w[ei] + w[ej]
+        return np.concatenate(
+            [
+                1.0 + cw.conformal_salient * w[self.apex],
+                cw.size * both + cw.size_floor * (2.0 - both),
+                np.full(self.mesh.n, self.l2 * cw.damping),
+            ]
+        )
+
+    def _use(self, w: FloatArray) -> None:
+        """Make the system's factorisation the one for saliency ``w`` (the system is
+        shared by the solvers of a topology: it keeps only its last factorisation)."""
+        if self._w is None or not np.array_equal(self._w, w):
+            cw, edges = self.weights, self.mesh.edges
+            both = w[edges[:, 0]] + w[edges[:, 1]]
+            w_size = cw.size * both
+            w_floor = cw.size_floor * (2.0 - both)
+            # the edge rows' target mixes the length target and the edge as it is
+            self._length_share = w_size * self.mesh.lengths / (w_size + w_floor)
+            self._keep_share = w_floor / (w_size + w_floor)
+            self._w = np.array(w, copy=True)
+            self._row_weights = self.row_weights(w)
+        self.system.factor(self.vals, self._row_weights)  # a no-op when it is current
 
     def step(self, v: FloatArray, w: FloatArray) -> FloatArray:
         """One solve with saliency ``w`` (n,) in {0, 1} from the iterate ``v`` (n, 2)."""
-        mesh, cw, rows = self.mesh, self.weights, self.rows
-        n = mesh.n
-        ei, ej = mesh.edges[:, 0], mesh.edges[:, 1]
-        dirs = edge_directions(v, mesh.edges)
-        rows.rhs[self._block(1)] = (mesh.lengths[:, None] * dirs).ravel()
-        normal = np.stack([dirs[:, 1], -dirs[:, 0]], axis=1)
-        rows.vals[self._block(2), :4] = np.concatenate([normal, -normal], axis=1)
-        rows.rhs[self._block(3)] = v.ravel()
-        weights = np.concatenate(
-            [
-                1.0 + cw.conformal_salient * w[self.apex],
-                np.repeat(cw.size * (w[ei] + w[ej]), 2),
-                cw.size_floor * (2.0 - w[ei] - w[ej]),
-                np.full(2 * n, self.l2 * cw.damping),
-            ]
-        )
-        x_fixed = np.zeros(2 * n)
-        x_fixed[2 * self.pinned : 2 * self.pinned + 2] = v[self.pinned]
-        return self.system.solve(rows.vals, rows.rhs, weights, x_fixed).reshape(n, 2)
+        mesh = self.mesh
+        self._use(w)
+        z = v[:, 0] + 1j * v[:, 1]
+        e = z[mesh.edges[:, 0]] - z[mesh.edges[:, 1]]
+        length = np.abs(e)
+        if not np.all(length > 0):
+            raise WarpError("a mesh edge collapsed to a point")
+        t0, t1 = self.sizes[0], self.sizes[0] + self.sizes[1]
+        const = self._const
+        const[t0:t1] = self._length_share * (e / length) + self._keep_share * e
+        const[t1:] = z
+        z_fixed = np.zeros(mesh.n, dtype=np.complex128)
+        z_fixed[self.pinned] = z[self.pinned]
+        out = self.system.solve(const, z_fixed)
+        return np.stack([out.real, out.imag], axis=1)
 
 
 @dataclass

@@ -167,3 +167,110 @@ class BandedLeastSquares:
         if not np.all(np.isfinite(x)):
             raise WarpError("the warp solve produced non-finite values")
         return x
+
+
+class ComplexLeastSquares:
+    """Solve ``min_z sum_r w_r |a_r . z - c_r|^2`` over complex unknowns, fixed row pattern.
+
+    The conformal energy is complex-linear in ``z = x + i y`` (eq. 4: ``R90`` is a
+    multiplication by ``-i``), and so are the edge and position terms of the
+    content-aware step: with complex unknowns the system has half the unknowns and a
+    band half as wide as the real one, and its Hermitian normal matrix is factored by
+    LAPACK's banded Cholesky (``zpbtrf``). The pattern is worked out once (memoised per
+    topology); :meth:`factor` keeps the last factorisation, so steps with the same
+    coefficients and weights cost one back-substitution each.
+
+    Parameters
+    ----------
+    cols : (m, k) int array
+        Unknown index of each coefficient of each row, -1 where unused.
+    n : int
+        Number of unknowns.
+    fixed : (n,) bool array
+        Unknowns held at given values (removed from the system).
+    """
+
+    def __init__(self, cols: IntArray, n: int, fixed: NDArray[np.bool_]) -> None:
+        self.n = n
+        self.fixed = fixed
+        free_index = np.full(n + 1, -1, dtype=np.intp)
+        free = np.flatnonzero(~fixed)
+        free_index[free] = np.arange(free.size)
+        self.nf = int(free.size)
+        if self.nf == 0:
+            raise WarpError("no free unknowns in the warp system")
+        self.cols = np.where(cols >= 0, cols, n)  # slot n: unused (value 0, never fixed)
+        fc = free_index[self.cols]
+        self.fc = fc
+        self.ok_rows = fc >= 0
+        self.entry_rows = np.broadcast_to(np.arange(cols.shape[0])[:, None], cols.shape)[
+            self.ok_rows
+        ]  # the row of each coefficient of a free unknown
+        self.entry_free = fc[self.ok_rows]
+        fixed_entry = fixed[np.where(cols >= 0, cols, 0)] & (cols >= 0)
+        self.fixed_rows = np.flatnonzero(fixed_entry.any(axis=1))  # rows that see a fixed one
+        self.pair_a, self.pair_b = np.triu_indices(cols.shape[1])
+        i, j = fc[:, self.pair_a], fc[:, self.pair_b]
+        ok = (i >= 0) & (j >= 0)
+        lo, hi = np.minimum(i, j), np.maximum(i, j)
+        self.swap = i > j  # the pair lands below the diagonal: conjugate its product
+        # two coefficients of one unknown add twice the real part of their product
+        self.twice = (i == j) & (self.pair_a != self.pair_b)[None, :]
+        band = int(np.max(np.where(ok, hi - lo, 0))) if ok.any() else 0
+        self.band = band
+        self.dump = (band + 1) * self.nf
+        self.flat = np.where(ok, (band + lo - hi) * self.nf + hi, self.dump).ravel()
+        self._vals: NDArray[np.complex128] | None = None
+        self._weights: FloatArray | None = None
+        self._chol: NDArray[np.complex128] | None = None
+        self._prod: NDArray[np.complex128] = np.zeros((0, 0), dtype=np.complex128)
+        self._adjoint: NDArray[np.complex128] = np.zeros(0, dtype=np.complex128)
+
+    def factor(self, vals: NDArray[np.complex128], weights: FloatArray) -> None:
+        """Factor ``A^H W A`` for coefficients ``vals`` (m, k) and row weights ``weights``
+        (m,); nothing to do when both are the ones last factored."""
+        if self._vals is not vals:
+            va, vb = vals[:, self.pair_a], vals[:, self.pair_b]
+            prod = np.conj(va) * vb
+            prod = np.where(self.swap, np.conj(prod), prod)
+            self._prod = np.where(self.twice, 2 * prod.real + 0j, prod)
+            self._vals = vals
+        elif self._weights is not None and np.array_equal(self._weights, weights):
+            return
+        p = self._prod * weights[:, None]
+        size = self.dump + 1
+        ab = np.bincount(self.flat, p.real.ravel(), size) + 1j * np.bincount(
+            self.flat, p.imag.ravel(), size
+        )
+        try:
+            self._chol = scipy.linalg.cholesky_banded(
+                ab[: self.dump].reshape(self.band + 1, self.nf), lower=False, check_finite=False
+            )
+        except np.linalg.LinAlgError:
+            raise WarpError("the warp system is singular (the mesh is disconnected?)") from None
+        self._weights = np.array(weights, copy=True)
+        self._adjoint = np.asarray(
+            np.conj(vals[self.ok_rows]) * self._weights[self.entry_rows], dtype=np.complex128
+        )
+
+    def solve(
+        self, const: NDArray[np.complex128], z_fixed: NDArray[np.complex128]
+    ) -> NDArray[np.complex128]:
+        """Minimiser (n,) for the last factored coefficients and weights and the
+        constants ``const`` (m,); the fixed unknowns are copied from ``z_fixed`` (n,)."""
+        if self._chol is None or self._vals is None or self._weights is None:
+            raise WarpError("the warp system has not been factored")
+        if self.fixed_rows.size:
+            zf = np.append(np.where(self.fixed, z_fixed, 0.0), 0.0)
+            r = self.fixed_rows
+            const = const.copy()
+            const[r] -= np.sum(self._vals[r] * zf[self.cols[r]], axis=1)
+        contrib = self._adjoint * const[self.entry_rows]
+        idx = self.entry_free
+        rhs = np.bincount(idx, contrib.real, self.nf) + 1j * np.bincount(idx, contrib.imag, self.nf)
+        zs = scipy.linalg.cho_solve_banded((self._chol, False), rhs, check_finite=False)
+        z = np.array(z_fixed, dtype=np.complex128, copy=True)
+        z[~self.fixed] = zs
+        if not np.all(np.isfinite(z)):
+            raise WarpError("the warp solve produced non-finite values")
+        return z

@@ -9,6 +9,7 @@ each row its weight.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.warp.system import Rows
@@ -92,3 +93,32 @@ def edge_normal_rows(edges: IntArray, stride: int = 2) -> Rows:
     i, j = edges[:, 0], edges[:, 1]
     cols = np.stack([stride * i, stride * i + 1, stride * j, stride * j + 1], axis=1)
     return Rows(cols.astype(np.intp), np.zeros((edges.shape[0], 4)), np.zeros(edges.shape[0]))
+
+
+def complex_conformal_rows(
+    tris: IntArray, coords: FloatArray
+) -> tuple[IntArray, NDArray[np.complex128]]:
+    """E_a (eq. 4) over complex unknowns ``z = x + i y`` (one per vertex): for each
+    triangle (T, 3) and role, ``z1 + (alpha - 1 - i beta) z2 + (i beta - alpha) z3``
+    (``R90`` is a multiplication by ``-i``). Rows ordered (triangle, role): (3T, 3)
+    vertex indices and coefficients."""
+    cols = np.empty((tris.shape[0], 3, 3), dtype=np.intp)
+    vals = np.empty((tris.shape[0], 3, 3), dtype=np.complex128)
+    for k in range(3):
+        cols[:, k] = np.stack([tris[:, k], tris[:, (k + 1) % 3], tris[:, (k + 2) % 3]], axis=1)
+        ab = coords[:, k, 0] + 1j * coords[:, k, 1]
+        vals[:, k, 0] = 1.0
+        vals[:, k, 1] = np.conj(ab) - 1.0
+        vals[:, k, 2] = -np.conj(ab)
+    return cols.reshape(-1, 3), vals.reshape(-1, 3)
+
+
+def complex_edge_rows(edges: IntArray) -> tuple[IntArray, NDArray[np.complex128]]:
+    """``z_i - z_j`` for each edge (E, 2): (E, 2) indices and coefficients."""
+    vals = np.tile(np.array([1.0, -1.0], dtype=np.complex128), (edges.shape[0], 1))
+    return edges.astype(np.intp), vals
+
+
+def complex_position_rows(n_vertices: int) -> tuple[IntArray, NDArray[np.complex128]]:
+    """``z_k`` for every vertex: (n, 1) indices and coefficients."""
+    return np.arange(n_vertices, dtype=np.intp)[:, None], np.ones((n_vertices, 1), np.complex128)

@@ -19,7 +19,8 @@ CONTENT = (640, 400)
 
 
 def subject_masks() -> dict[str, NDArray[np.float32]]:
-    """Off-centre subjects: one standing left, two people apart."""
+    """Subjects: one standing left, two people apart, a face; a quarter and half of the
+    image (centred ellipses)."""
     w, h = CONTENT
     yy, xx = np.mgrid[0:h, 0:w]
 
@@ -31,7 +32,15 @@ def subject_masks() -> dict[str, NDArray[np.float32]]:
         "two-apart": (ellipse(0.7, 0.55, 0.1, 0.25) | ellipse(0.25, 0.5, 0.1, 0.25)).astype(
             np.float32
         ),
+        "face": ellipse(0.56, 0.42, 0.055, 0.09).astype(np.float32),
+        "quarter": ellipse(0.5, 0.5, 0.28, 0.28).astype(np.float32),
+        "half": ellipse(0.5, 0.5, 0.4, 0.4).astype(np.float32),
     }
+
+
+# the subjects of each size: small ones, and ones covering a quarter and half the image
+SMALL_SUBJECTS = ("one-left", "two-apart", "face")
+LARGE_SUBJECTS = ("quarter", "half")
 
 
 @cache

@@ -1,0 +1,230 @@
+"""Never worse than conformal on what matters: the content-aware warp checked against the
+conformal one on the salient region, by the engine's own measure.
+
+The content-aware energy trades angle for size consistency on the subject; on most
+surfaces both improve, but where the mesh cannot follow the surface (a crease, relief
+finer than the grid) the trade can go wrong. :func:`guard` scores both candidates the
+way the displayed distortion is scored - per mesh triangle, the Jacobian of the map
+content -> surface, angle error ``sigma1 / sigma2 - 1`` and the spread of
+``log sqrt(sigma1 sigma2)`` over the triangles that show salient content, each
+weighted by its projector area and the salient share of it - and keeps the
+content-aware warp when it is no worse on both, else the largest blend toward the
+conformal warp that is (the conformal warp itself in the end). ``meta`` says which and
+why. Both the full-grid path (:func:`~adaproj_edge.warp.engine.content_aware`) and the
+device's coarse-to-fine refinement (:class:`~adaproj_edge.warp.planner.WarpPlanner`) call
+it with their two vertex sets.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.warp.mesh import MeshGeometry
+from adaproj_edge.warp.orientation import unfolded
+from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
+
+# the content-aware warp must be this much better than the conformal one on each count
+# (the mesh measure differs a little from the per-pixel one of the display)
+MARGIN = 0.03
+# and distortion below this counts as none (a developable surface: both are exact)
+FLOOR = 2e-4
+BLENDS = (0.75, 0.5, 0.25)  # share of the content-aware warp in the blends tried
+
+
+@dataclass(frozen=True)
+class SubjectDistortion:
+    """Distortion of the salient part of a warp, by the mesh.
+
+    angle : weighted mean of sigma1 / sigma2 - 1
+    size : weighted standard deviation of log sqrt(sigma1 sigma2)
+    weight : total weight (projector pixels x salient share); 0 when nothing salient shows
+    """
+
+    angle: float
+    size: float
+    weight: float
+
+    def as_dict(self) -> dict[str, float]:
+        """The measures as a JSON-ready dict (the warp's ``meta``)."""
+        return {"angle": self.angle, "size": self.size, "weight": self.weight}
+
+
+@dataclass(frozen=True)
+class Choice:
+    """What :func:`guard` keeps: positions (n, 2), their placement, the share ``t`` of the
+    content-aware warp (1: it alone, 0: the conformal warp), and ``meta``."""
+
+    v: FloatArray
+    placement: Placement
+    t: float
+    meta: dict[str, Any]
+
+
+def triangle_distortion(
+    mesh: MeshGeometry, content_xy: FloatArray, keep: NDArray[np.bool_] | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """Angle error and log size of the mesh triangles (all, or those where ``keep``
+    (T,) holds) for content positions ``content_xy`` (n, 2): the map content -> surface,
+    surface in metres."""
+    tris = mesh.tris if keep is None else mesh.tris[keep]
+    q = content_xy[tris]  # (T', 3, 2)
+    p = mesh.shapes if keep is None else mesh.shapes[keep]
+    dq = np.stack([q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]], axis=2)  # columns: edges
+    dp = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)
+    det_q = dq[:, 0, 0] * dq[:, 1, 1] - dq[:, 0, 1] * dq[:, 1, 0]
+    inv = (
+        np.stack(
+            [
+                np.stack([dq[:, 1, 1], -dq[:, 0, 1]], axis=1),
+                np.stack([-dq[:, 1, 0], dq[:, 0, 0]], axis=1),
+            ],
+            axis=1,
+        )
+        / det_q[:, None, None]
+    )
+    j = dp @ inv  # (T, 2, 2): content -> surface
+    # singular values of a 2x2 matrix in closed form
+    a, b, c, d = j[:, 0, 0], j[:, 0, 1], j[:, 1, 0], j[:, 1, 1]
+    s_plus = np.hypot(a + d, c - b)
+    s_minus = np.hypot(a - d, c + b)
+    s1 = 0.5 * (s_plus + s_minus)
+    s2 = np.maximum(0.5 * np.abs(s_plus - s_minus), 1e-300)
+    return s1 / s2 - 1.0, 0.5 * np.log(np.maximum(s1 * s2, 1e-300))
+
+
+def subject_distortion(
+    mesh: MeshGeometry, content_xy: FloatArray, content_map: ContentMap
+) -> SubjectDistortion:
+    """The distortion of the salient content (C >= T) shown by the mesh triangles with
+    content positions ``content_xy`` (n, 2)."""
+    # the salient share of a triangle: C >= T at its corners and at its centroid
+    centroids = content_xy[mesh.tris].mean(axis=1)
+    salient = content_map.weights(np.concatenate([content_xy, centroids]))
+    n = content_xy.shape[0]
+    share = (salient[mesh.tris].sum(axis=1) + salient[n:]) / 4.0
+    weight = share * mesh.pixel_areas
+    total = float(weight.sum())
+    if total <= 0:
+        return SubjectDistortion(0.0, 0.0, 0.0)
+    keep = weight > 0
+    angle, log_size = triangle_distortion(mesh, content_xy, keep)
+    wk = weight[keep]
+    mean_log = float(wk @ log_size / total)
+    spread = float(np.sqrt(wk @ (log_size - mean_log) ** 2 / total))
+    return SubjectDistortion(float(wk @ angle / total), spread, total)
+
+
+def no_worse(a: SubjectDistortion, b: SubjectDistortion, margin: float = MARGIN) -> bool:
+    """Whether ``a`` is no worse than ``b`` in angle and in size, by ``margin``."""
+    return bool(
+        a.angle <= max(b.angle * (1 - margin), FLOOR)
+        and a.size <= max(b.size * (1 - margin), FLOOR)
+    )
+
+
+def _aligned(v: FloatArray, to: FloatArray) -> FloatArray:
+    """``v`` (n, 2) moved by the similarity that best matches it to ``to`` (n, 2)."""
+    z = v[:, 0] + 1j * v[:, 1]
+    t = to[:, 0] + 1j * to[:, 1]
+    zc, tc = z - z.mean(), t - t.mean()
+    s = np.vdot(zc, tc) / max(float(np.vdot(zc, zc).real), 1e-300)
+    out = s * zc + t.mean()
+    return np.stack([out.real, out.imag], axis=1)
+
+
+def guard(
+    mesh: MeshGeometry,
+    aware: tuple[FloatArray, Placement],
+    conformal: tuple[FloatArray, Placement],
+    content_map: ContentMap,
+    up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
+    margin: float = MARGIN,
+) -> Choice:
+    """Keep the content-aware warp, a blend, or the conformal warp: the one with most of
+    the content-aware warp that is no worse than the conformal warp on the salient
+    region, in angle error and in size inconsistency.
+
+    Parameters
+    ----------
+    mesh : MeshGeometry
+    aware, conformal : (positions (n, 2), placement)
+        The two candidates, each with the placement made for it.
+    content_map : ContentMap
+    up : "up" in frame P, for placing a blend.
+    margin : how much better than the conformal warp a candidate must look on the mesh
+        (:data:`MARGIN`; more where the mesh is further from what is displayed).
+
+    Returns
+    -------
+    Choice; its ``meta`` holds ``choice`` ("content-aware", "blend", "conformal" or
+    "content-aware, nothing salient shows"), ``reason``, ``t`` and the measures.
+    """
+    va, pa = aware
+    vc, pc = conformal
+    m_aware = subject_distortion(mesh, pa.apply(va), content_map)
+    m_conf = subject_distortion(mesh, pc.apply(vc), content_map)
+    meta: dict[str, Any] = {"aware": m_aware.as_dict(), "conformal": m_conf.as_dict()}
+    if m_aware.weight <= 0 or m_conf.weight <= 0:
+        meta.update(choice="content-aware", reason="no salient content shows", t=1.0)
+        return Choice(va, pa, 1.0, meta)
+    if no_worse(m_aware, m_conf, margin):
+        meta.update(choice="content-aware", reason="no worse in angle and size", t=1.0)
+        return Choice(va, pa, 1.0, meta)
+    base = _aligned(vc, va)
+    for t in BLENDS:
+        vt = t * va + (1 - t) * base
+        if not unfolded(vt, mesh.tris):
+            continue
+        pt = place(mesh, vt, content_map.content_size, up, pa)
+        m = subject_distortion(mesh, pt.apply(vt), content_map)
+        if no_worse(m, m_conf, margin):
+            meta.update(
+                choice="blend",
+                reason="the content-aware warp alone is worse in angle or size",
+                t=t,
+                blend=m.as_dict(),
+            )
+            return Choice(vt, pt, t, meta)
+    meta.update(choice="conformal", reason="no blend is better in both angle and size", t=0.0)
+    return Choice(vc, pc, 0.0, meta)
+
+
+def guard_grid(
+    image_xy: FloatArray,
+    mesh: MeshGeometry,
+    conformal: tuple[FloatArray, Placement],
+    content_map: ContentMap,
+    up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
+) -> tuple[FloatArray, dict[str, Any]]:
+    """:func:`guard` for a warp given as content pixels of its grid's vertices (the
+    device's coarse-to-fine result: what is displayed, not the coarse mesh, must be no
+    worse than the conformal warp).
+
+    Parameters
+    ----------
+    image_xy : (R, C, 2) float array
+        Content pixels of the grid vertices (NaN where no surface).
+    mesh : MeshGeometry
+        The grid's mesh (its vertices ``mesh.verts`` index the flattened grid).
+    conformal : (positions (n, 2), placement)
+    content_map : ContentMap
+    up : "up" in frame P.
+
+    Returns
+    -------
+    The vertices kept, (R, C, 2), and the guard's meta.
+    """
+    flat = image_xy.reshape(-1, 2)
+    as_is = Placement(0.0, 1.0, np.zeros(2))  # content pixels already
+    choice = guard(mesh, (flat[mesh.verts], as_is), conformal, content_map, up)
+    if choice.t == 1.0:
+        return image_xy, choice.meta
+    out = np.full_like(flat, np.nan)
+    out[mesh.verts] = choice.placement.apply(choice.v)
+    return out.reshape(image_xy.shape), choice.meta

@@ -1,0 +1,67 @@
+"""Never worse than conformal on the subject: the guard's measure and its choice."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.geometry.analytic import simulate_surface
+from adaproj_edge.warp.guard import guard, subject_distortion, triangle_distortion
+from adaproj_edge.warp.mesh import MeshGeometry
+from adaproj_edge.warp.placement import place
+from adaproj_edge.warp.solve import solve_conformal
+from adaproj_edge.warp.warpmap import Grid
+from tests.warp.conftest import CONTENT, subject_masks
+
+
+@pytest.fixture(scope="module")
+def sphere() -> MeshGeometry:
+    return MeshGeometry.build(simulate_surface("sphere-convex", step=4), Grid(16, 12))
+
+
+def test_a_plane_developed_has_no_distortion() -> None:
+    mesh = MeshGeometry.build(simulate_surface("tilted", step=8), Grid(12, 8))
+    v = solve_conformal(mesh)
+    angle, log_size = triangle_distortion(mesh, 250.0 * v)
+    assert np.abs(angle).max() < 1e-9
+    assert np.ptp(log_size) < 1e-9 and log_size.mean() == pytest.approx(np.log(1 / 250.0))
+
+
+def test_the_measure_counts_only_what_is_salient(sphere: MeshGeometry) -> None:
+    v = solve_conformal(sphere)
+    pl = place(sphere, v, CONTENT)
+    none = ContentMap(np.zeros((50, 80), np.float32), CONTENT)
+    assert subject_distortion(sphere, pl.apply(v), none).weight == 0
+    left = ContentMap(subject_masks()["one-left"], CONTENT)
+    m = subject_distortion(sphere, pl.apply(v), left)
+    whole = subject_distortion(
+        sphere, pl.apply(v), ContentMap(np.ones((50, 80), np.float32), CONTENT)
+    )
+    assert 0 < m.weight < whole.weight
+    assert m.angle > 0 and m.size > 0
+
+
+def test_a_worse_candidate_is_not_kept(sphere: MeshGeometry) -> None:
+    v = solve_conformal(sphere)
+    pl = place(sphere, v, CONTENT)
+    cmap = ContentMap(subject_masks()["half"], CONTENT)
+    # a sheared copy of the conformal warp: worse in angle everywhere
+    sheared = v @ np.array([[1.0, 0.15], [0.0, 1.0]]).T
+    choice = guard(sphere, (sheared, place(sphere, sheared, CONTENT)), (v, pl), cmap)
+    assert choice.meta["choice"] in ("blend", "conformal") and choice.t < 1
+    kept = subject_distortion(sphere, choice.placement.apply(choice.v), cmap)
+    conf = subject_distortion(sphere, pl.apply(v), cmap)
+    assert kept.angle <= conf.angle and kept.size <= conf.size + 1e-12
+
+
+def test_a_better_candidate_is_kept(sphere: MeshGeometry) -> None:
+    v = solve_conformal(sphere)
+    pl = place(sphere, v, CONTENT)
+    cmap = ContentMap(subject_masks()["one-left"], CONTENT)
+    # a bent copy of the conformal warp: worse in angle and in size
+    bent = v.copy()
+    bent[:, 0] += 0.8 * (v[:, 0] - v[:, 0].mean()) ** 2
+    choice = guard(sphere, (v, pl), (bent, place(sphere, bent, CONTENT)), cmap)
+    assert choice.meta["choice"] == "content-aware" and choice.t == 1.0
+    assert choice.meta["reason"] and "aware" in choice.meta and "conformal" in choice.meta
