@@ -82,8 +82,11 @@ def fill_holes(s: FloatArray, max_nodes: int) -> tuple[FloatArray, BoolArray]:
     for _ in range(4 * max_nodes + 20):
         p = np.pad(out, 1, mode="edge")
         nb = np.stack([p[:-2, 1:-1], p[2:, 1:-1], p[1:-1, :-2], p[1:-1, 2:]])
-        with np.errstate(invalid="ignore"):
-            avg = np.nanmean(np.where(np.isfinite(nb), nb, np.nan), axis=0)
+        known = np.isfinite(nb)
+        # nodes away from the holes may have no finite neighbour (a large invalid
+        # region); their mean is never used, so divide by at least one
+        total = np.where(known, nb, 0.0).sum(axis=0)
+        avg = total / np.maximum(known.sum(axis=0), 1)
         out = np.where(fill, avg, out)
     return out, fill
 
