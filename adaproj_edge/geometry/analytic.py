@@ -11,6 +11,10 @@ a wall meeting a cone along a ruling (Figure 11), relief of several scales on a 
 and corrugated walls whose waves are as fine as the warp grid or finer. Every surface
 names its smooth patches (:meth:`AnalyticSurface.patch`), so a scorer knows where the
 map is not differentiable.
+
+This file is about 420 lines on purpose: it is the catalogue of surfaces, each a small
+class with the same three methods, and the table that names them; the relief surfaces,
+whose geometry is longer, are in :mod:`adaproj_edge.geometry.relief`.
 """
 
 from __future__ import annotations

@@ -29,6 +29,11 @@ overrun is counted and logged, and the samples before it are simply gone.
 Without FIFO (``fifo = false``) each read is one 16-byte burst from ``STATUS_REG``
 (0x1E): status, reserved, temperature, gyro x/y/z, accel x/y/z, little-endian int16,
 timed by the host's clock when read.
+
+This file is about 470 lines on purpose: it is one chip's register map and the two ways
+of reading it, which share the start-up, the scaling and the fault handling; the
+bus is reached through ``smbus2`` only, so the whole file runs against a fake bus in the
+tests.
 """
 
 from __future__ import annotations

@@ -28,6 +28,11 @@ Video frames (``refine(..., frame_dt=dt)``)
     :class:`~adaproj_edge.warp.temporal.WarpSmoother`, so the warp follows a moving
     subject smoothly and stands still on a still scene (:mod:`adaproj_edge.warp.temporal`).
 
+This file is about 520 lines on purpose: it is the one place that decides how a warp is
+made (which grid, warm or cold, guarded or not, coarse or fine); the steps it chooses
+between live in modules of their own (``engine``, ``guard``, ``adaptive``, ``temporal``,
+``coarse``, ``posecache``).
+
 Full grid (``refine_factor`` 1, :func:`compute_warp`)
     The grid is first refined where the surface bends faster than it samples it
     (``WarpSettings.adaptive``, :mod:`~adaproj_edge.warp.adaptive`); our alternation
