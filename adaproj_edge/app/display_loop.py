@@ -17,7 +17,8 @@ millimetres): shown as it comes, that is a jump. Instead the new frame starts wh
 the old one's content was on the display (the homography that best carries the new
 placement of a grid of content points onto the old one: a change of shape as well as a
 shift) and glides to its own placement with time constant ``glide_s`` (the homography
-eased towards the identity). A larger change (over
+eased towards the identity; ``glide_moving_s`` for a frame published while the device
+is turned on purpose). A larger change (over
 ``max_glide`` of the margin: a re-aim, other content) is shown at once.
 
 Threads (on the device, :func:`run_display`): the display thread owns the display and
