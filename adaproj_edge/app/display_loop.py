@@ -17,7 +17,8 @@ millimetres): shown as it comes, that is a jump. Instead the new frame starts wh
 the old one's content was on the display (the homography that best carries the new
 placement of a grid of content points onto the old one: a change of shape as well as a
 shift) and glides to its own placement with time constant ``glide_s`` (the homography
-eased towards the identity). A larger change (over
+eased towards the identity; ``glide_moving_s`` for a frame published while the device
+is turned on purpose). A larger change (over
 ``max_glide`` of the margin: a re-aim, other content) is shown at once.
 
 Threads (on the device, :func:`run_display`): the display thread owns the display and
@@ -181,6 +182,7 @@ class DisplayLoop:
         self._shown: Shown | None = None
         self._glide = np.eye(3)  # the glide's homography when published
         self._glide_ns = 0
+        self._glide_tau_s = settings.glide_s  # its time constant
         self._imu_lock = threading.Lock()
         self._frame_lock = threading.Lock()
         self.running = False
@@ -219,11 +221,12 @@ class DisplayLoop:
         spare = 1 - self._current
         cv2.cvtColor(frame, cv2.COLOR_BGR2BGRA, dst=self._buffers[spare])
         glide = self._glide_to(shown, t_ns)
+        tau = self._glide_tau()
         with self._frame_lock:
             self._current = spare
             self._marks = list(marks)
             self._shown = shown
-            self._glide, self._glide_ns = glide, t_ns
+            self._glide, self._glide_ns, self._glide_tau_s = glide, t_ns, tau
         if not self.running:
             self.display.show(draw_status(frame, marks))
 
@@ -231,9 +234,21 @@ class DisplayLoop:
         """The glide's homography (3, 3) at ``t_ns``: from a pixel of the corrected
         display to the rendered frame's."""
         age = max(0, t_ns - self._glide_ns) * 1e-9
-        a = math.exp(-age / self.settings.glide_s)
+        a = math.exp(-age / self._glide_tau_s) if self._glide_tau_s > 0 else 0.0
         out: FloatArray = np.eye(3) + a * (self._glide - np.eye(3))
         return out
+
+    def _glide_tau(self) -> float:
+        """The glide's time constant for a frame published now: ``glide_s`` held still,
+        towards ``glide_moving_s`` as the device is turned on purpose (the stabiliser's
+        deliberate rate, blended as its follower's time constant is). Turned, frames
+        come every ``moving_interval_s``: a slow glide would never finish, and each new
+        frame would start from the last one's lag (the content's tilt and place behind
+        the device's by a glide's worth after the turn)."""
+        s = self.settings
+        with self._imu_lock:
+            v = self.stabiliser.deliberate_rate / self.settings.stabiliser.moving_rate
+        return s.glide_moving_s + (s.glide_s - s.glide_moving_s) / (1.0 + v * v)
 
     def _glide_to(self, new: Shown, t_ns: int) -> FloatArray:
         """The glide (homography, 3 x 3) that starts ``new`` where the frame shown now

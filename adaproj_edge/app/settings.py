@@ -17,14 +17,15 @@ from adaproj_edge.warp.warpmap import Grid
 class DisplaySettings:
     """The display loop (:mod:`adaproj_edge.app.display_loop`): refreshes per second,
     how long before a refresh its frame is computed (seconds), how it is resampled, the
-    time constant of the glide from one rendered frame's placement to the next's (and
-    the largest glide, as a share of the margin), and the stabiliser (its ``margin`` 0:
-    frames shown as rendered)."""
+    time constant of the glide from one rendered frame's placement to the next's held
+    still and turned on purpose (and the largest glide, as a share of the margin), and
+    the stabiliser (its ``margin`` 0: frames shown as rendered)."""
 
     refresh_hz: float = 60.0
     lead_s: float = 0.008
     interpolation: Interpolation = "nearest"
     glide_s: float = 0.3
+    glide_moving_s: float = 0.05
     max_glide: float = 2.0
     stabiliser: StabiliserSettings = field(default_factory=StabiliserSettings)
 

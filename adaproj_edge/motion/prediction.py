@@ -15,7 +15,11 @@ ahead. Instead each axis's rate, less its straight-line trend over the last
 autoregressive model of order ``ar_order`` (least squares: the linear predictor of a
 stationary signal from its own past, which adapts to whatever spectrum the hand has)
 and run forward sample by sample to the wanted time; the predicted rates are
-integrated onto the newest orientation. A fit that grows (a root of its polynomial
+integrated onto the newest orientation. The three axes are fitted as one batch and the
+coefficients are kept for ``ar_refit_s`` (the trend and the run forward are redone at
+every prediction): the display thread predicts at every refresh, and refitting each
+time was most of its filter's cost. An axis with no oscillation left (a pure turn, an
+idle axis) is carried by its trend alone. A fit that grows (a root of its polynomial
 beyond ``MAX_ROOT``) or whose prediction leaves the range seen in the window falls
 back to a quadratic fitted to the last ``fallback_window_s`` of rates (a Taylor
 extrapolation). ``method="constant"`` holds the newest rate, ``"none"`` the newest
@@ -34,6 +38,7 @@ from adaproj_edge.arrays import FloatArray
 
 PredictMethod = Literal["ar", "constant", "none"]
 MAX_ROOT = 1.05  # a fit of a narrow-band oscillation has roots near the unit circle
+FLAT_RATE = 1e-9  # rad/s: residuals below this are rounding, nothing to fit
 
 
 @dataclass(frozen=True)
@@ -49,11 +54,16 @@ class PredictionSettings:
         A longer gap between samples (an IMU fault) starts the history afresh.
     fallback_window_s : float
         Samples the fallback's quadratic is fitted on.
+    ar_refit_s : float
+        The model's coefficients are fitted again once the newest sample is this much
+        newer than the last fit (the hand's tremor spectrum changes over seconds); the
+        trend and the run forward are done at every prediction.
     """
 
     method: PredictMethod = "ar"
     ar_order: int = 4
     ar_window_s: float = 0.5
+    ar_refit_s: float = 0.05
     max_gap_s: float = 0.05
     fallback_window_s: float = 0.015
 
@@ -79,12 +89,15 @@ class GyroTrack:
         self.orientation = np.eye(3)
         self.bias = np.zeros(3)
         self.samples = 0  # accepted since the last reset
+        self._coef: FloatArray | None = None  # the AR fit (3, p), None: none usable
+        self._fit_key: tuple[int, int] | None = None  # (newest sample ns, window) of it
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
         """Forget the rates (after a gap); the orientation is kept."""
         self._n = 0
         self._head = 0
+        self._fit_key = None
 
     @property
     def last_ns(self) -> int | None:
@@ -137,58 +150,92 @@ class GyroTrack:
     def _integral(self, h: float) -> FloatArray:
         """The predicted rotation (rotation vector, 3) over the next ``h`` seconds."""
         s = self.settings
-        t, w = self.rates()
+        t, w = self.rates(min(self._n, 33))
         newest: FloatArray = w[-1] - self.bias
         if s.method == "constant" or len(t) < 3:
             return newest * h
         dt = float(np.median(np.diff(t)))
         n = round(s.ar_window_s / dt) if dt > 0 else 0
         p = s.ar_order
-        if n < 4 * p or len(t) < n:
+        if n < 4 * p or self._n < n:
             return newest * h
-        got = _ar_forward(w[-n:], p, dt, h)
+        t, w = self.rates(n)
+        y, c0, slope = _detrend(w, dt)
+        last = int(self._t[(self._head - 1) % self.capacity])
+        key = self._fit_key
+        if key is None or key[1] != n or last - key[0] >= s.ar_refit_s * 1e9:
+            self._coef, self._fit_key = _ar_fit(y, p), (last, n)
+        got = None if self._coef is None else _ar_run(y, self._coef, dt, h)
         if got is None:
             got = _taylor_forward(w[-max(3, round(s.fallback_window_s / dt)) :], dt, h)
+        else:
+            got = got + c0 * h + 0.5 * slope * h * h  # the trend c0 + c1 t over [0, h]
         return got - self.bias * h
 
 
-def _ar_forward(w: FloatArray, p: int, dt: float, h: float) -> FloatArray | None:
-    """The integral over the next ``h`` seconds of the rates (n, 3) sampled every ``dt``:
-    each axis's straight-line trend over the window carried on, plus what is left
-    (the oscillation) continued by an AR(``p``) least-squares fit; None when a fit is
-    unusable (singular, unstable, or its prediction leaves the range of the window)."""
+def _detrend(w: FloatArray, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The rates (n, 3) sampled every ``dt`` less each axis's least-squares straight
+    line ``c0 + c1 x`` (x in seconds, 0 at the newest sample): the residuals (n, 3),
+    ``c0`` (3,) and ``c1`` (3,)."""
     n = len(w)
-    x = (np.arange(n) - (n - 1)) * dt  # 0 at the newest sample
-    A = np.stack([np.ones(n), x], axis=1)
-    trend, *_ = np.linalg.lstsq(A, w, rcond=None)  # (2, 3)
-    y = w - A @ trend
+    k = np.arange(n) - 0.5 * (n - 1)  # centred sample index
+    wm = w.mean(axis=0)
+    slope: FloatArray = (k @ w) / (float(k @ k) * dt)
+    c0: FloatArray = wm + slope * (0.5 * (n - 1) * dt)
+    y: FloatArray = w - wm - np.outer(k * dt, slope)
+    return y, c0, slope
+
+
+def _ar_fit(y: FloatArray, p: int) -> FloatArray | None:
+    """Each axis's AR(``p``) least-squares coefficients (3, p) on the residuals (n, 3),
+    newest lag first (zero for an axis with nothing to fit); None when a fit is unstable
+    (a root of its polynomial beyond ``MAX_ROOT``). The three
+    axes are fitted at once: the normal equations from one product of the lagged
+    samples, the roots as the eigenvalues of the companion matrices."""
+    Z = np.lib.stride_tricks.sliding_window_view(y, p + 1, axis=0)  # (n - p, 3, p + 1)
+    M = np.einsum("kai,kaj->aij", Z, Z)  # (3, p + 1, p + 1), oldest lag first
+    G = M[:, :p, :p][:, ::-1, ::-1].copy()  # lags newest first
+    b = M[:, :p, p][:, ::-1].copy()
+    # an axis with no oscillation left in its rate (residuals under a nanoradian per
+    # second, rounding; or lagged samples of rank below p, as least squares would rank
+    # their singular values) is continued as zero
+    ev = np.linalg.eigvalsh(G)  # ascending, (3, p)
+    flat = (ev[:, -1] <= len(Z) * FLAT_RATE**2) | (ev[:, 0] <= (1e-15 * len(Z)) ** 2 * ev[:, -1])
+    G[flat] = np.eye(p)
+    b[flat] = 0.0
+    coef: FloatArray = np.linalg.solve(G, b[..., None])[..., 0]
+    companion = np.zeros((3, p, p))
+    companion[:, 0, :] = coef
+    companion[:, np.arange(1, p), np.arange(p - 1)] = 1.0
+    if np.abs(np.linalg.eigvals(companion)).max() > MAX_ROOT:
+        return None
+    return coef
+
+
+def _ar_run(y: FloatArray, coef: FloatArray, dt: float, h: float) -> FloatArray | None:
+    """The integral (3,) over the next ``h`` seconds of the residuals (n, 3) sampled
+    every ``dt``, continued by the AR coefficients (3, p); None when the continuation
+    leaves 1.5 times the range of the window (a fit that does not fit any more)."""
+    p = coef.shape[1]
     steps = int(np.ceil(h / dt - 1e-9))
+    c = coef.tolist()
     out = np.empty(3)
     for a in range(3):
-        ya = y[:, a]
-        X = np.stack([ya[p - 1 - i : n - 1 - i] for i in range(p)], axis=1)
-        coef, _, rank, _ = np.linalg.lstsq(X, ya[p:], rcond=None)
-        if rank < p or np.max(np.abs(np.roots(np.r_[1.0, -coef]))) > MAX_ROOT:
-            return None
-        hist = list(ya[-p:][::-1])
-        r = [float(ya[-1])]
-        for _ in range(steps):
-            v = float(np.dot(coef, hist))
-            r.append(v)
-            hist = [v, *hist[:-1]]
-        bound = 1.5 * float(np.max(np.abs(ya)))
-        if max(abs(v) for v in r) > bound:
-            return None
-        # trapezoids over whole steps, the last one cut at h
+        ca = c[a]
+        hist = y[-p:, a][::-1].tolist()
+        bound = 1.5 * float(np.abs(y[:, a]).max())
+        prev = hist[0]
         total = 0.0
         for j in range(steps):
+            v = sum(ci * hi for ci, hi in zip(ca, hist, strict=True))
+            if abs(v) > bound:
+                return None
             width = min(dt, h - j * dt)
-            if width <= 0:
-                break
-            end = r[j] + (r[j + 1] - r[j]) * (width / dt)
-            total += 0.5 * (r[j] + end) * width
-        # the trend: c0 + c1 t integrated over [0, h]
-        out[a] = total + trend[0, a] * h + 0.5 * trend[1, a] * h * h
+            # trapezoids over whole steps, the last one cut at h
+            total += 0.5 * (prev + prev + (v - prev) * (width / dt)) * width
+            hist = [v, *hist[:-1]]
+            prev = v
+        out[a] = total
     return out
 
 

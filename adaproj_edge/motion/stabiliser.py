@@ -19,6 +19,11 @@ the slow sway of the hand are cancelled and the picture stays where it is on the
 surface; turned on purpose, ``tau`` drops towards ``tau_moving`` and the picture follows
 with little lag.
 
+The follower starts as a running mean of the orientations it is given (the pull is at
+least ``dt / age`` while its age is under the time constant): started on the first
+orientation alone, it would keep that instant's tremor and let it decay with
+``tau_still_s``, a drift of the picture over the first seconds.
+
 The margin
 ----------
 The content is rendered ``margin`` of the frame inside each edge, so the correction has
@@ -133,6 +138,7 @@ class Stabiliser:
         self._bias = GyroBias(s.bias_tau_s, s.still_rate, s.still_hold_s, s.max_bias, s.speed_tau_s)
         self.R_s: FloatArray | None = None
         self._last_step_ns: int | None = None
+        self._age_s = 0.0  # since the follower started
         self._usage = 0.0
 
     # ------------------------------------------------------------------ input
@@ -156,6 +162,7 @@ class Stabiliser:
         self.track.reset()
         self.R_s = None
         self._last_step_ns = None
+        self._age_s = 0.0
         self._deliberate.reset()
         self._bias.reset_stillness()
         self._usage = 0.0
@@ -179,16 +186,22 @@ class Stabiliser:
         if not s.enabled or self.track.last_ns is None:
             return Correction(np.eye(3), 0.0, 0.0)
         if self.R_s is None or self._last_step_ns is None:
-            self.R_s, self._last_step_ns = R, t_lit_ns
+            self.R_s, self._last_step_ns, self._age_s = R, t_lit_ns, 0.0
             return Correction(np.eye(3), 0.0, s.tau_still_s)
         dt = max(0.0, (t_lit_ns - self._last_step_ns) * 1e-9)
         self._last_step_ns = t_lit_ns
+        self._age_s += dt
         v = self.deliberate_rate / s.moving_rate
         tau = s.tau_moving_s + (s.tau_still_s - s.tau_moving_s) / (1.0 + v * v)
         # carried along by the low-passed rate (no lag behind a steady turn or a bias
         # not yet learnt), then pulled towards the device
         self.R_s = self.R_s @ small_rotation(self._deliberate.value * dt)
-        self.R_s = _toward(self.R_s, R, 1.0 - math.exp(-dt / tau))
+        a = 1.0 - math.exp(-dt / tau)
+        if self._age_s < tau:
+            # started: a running mean of the orientations so far, not the first one
+            # (which holds that instant's tremor, then left to decay with tau_still)
+            a = max(a, dt / self._age_s)
+        self.R_s = _toward(self.R_s, R, a)
         usage = margin_usage(self.K, self.R_s.T @ R, self.size, s.margin)
         self._usage += (usage - self._usage) * (1.0 - math.exp(-dt / s.usage_tau_s))
         if self._usage > s.ease_from:

@@ -8,6 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from adaproj_edge.geometry.rotations import rotation_matrix, rotation_vector
+from adaproj_edge.motion import prediction
 from adaproj_edge.motion.prediction import GyroTrack, PredictionSettings, small_rotation
 
 RATE_HZ = 416.0
@@ -33,7 +34,7 @@ def test_a_constant_rate_integrates_and_predicts_exactly() -> None:
     assert np.allclose(none.predict(int(1e9)), none.orientation)
 
 
-def _tremor_error(method: str) -> float:
+def _tremor_error(method: str, refit_s: float = 0.05) -> float:
     """RMS angle error (rad) predicting 14 ms ahead on a narrow-band 'tremor'."""
     rng = np.random.default_rng(0)
     f = rng.normal(10.0, 1.0, 30)
@@ -49,7 +50,7 @@ def _tremor_error(method: str) -> float:
     t = np.arange(0, 3.0, 1 / RATE_HZ)
     w = np.zeros((len(t), 3))
     w[:, 1] = rate(t) + rng.normal(scale=0.001, size=len(t))
-    track = GyroTrack(PredictionSettings(method=method))  # type: ignore[arg-type]
+    track = GyroTrack(PredictionSettings(method=method, ar_refit_s=refit_s))  # type: ignore[arg-type]
     errs = []
     for k in range(len(t)):
         track.add(round(t[k] * 1e9), w[k])
@@ -106,3 +107,66 @@ def test_a_prediction_from_noise_stays_bounded(seed: int) -> None:
 def test_small_rotation_is_rodrigues(r: list[float], scale: float) -> None:
     v = np.array(r) * scale
     assert np.allclose(small_rotation(v), rotation_matrix(v), atol=1e-14)
+
+
+def _reference_ar(w: np.ndarray, p: int, dt: float, h: float) -> np.ndarray:
+    """The AR prediction written out plainly, axis by axis (``np.linalg.lstsq`` for the
+    trend and the coefficients, a sample-by-sample run and trapezoids): what
+    :mod:`adaproj_edge.motion.prediction` computes at once for the three axes."""
+    n = len(w)
+    x = (np.arange(n) - (n - 1)) * dt
+    A = np.stack([np.ones(n), x], axis=1)
+    trend = np.linalg.lstsq(A, w, rcond=None)[0]
+    y = w - A @ trend
+    out = np.zeros(3)
+    steps = int(np.ceil(h / dt - 1e-9))
+    for a in range(3):
+        X = np.stack([y[p - 1 - i : n - 1 - i, a] for i in range(p)], axis=1)
+        coef = np.linalg.lstsq(X, y[p:, a], rcond=None)[0]
+        r = [y[-1, a]]
+        hist = list(y[-p:, a][::-1])
+        for _ in range(steps):
+            r.append(float(np.dot(coef, hist)))
+            hist = [r[-1], *hist[:-1]]
+        for j in range(steps):
+            width = min(dt, h - j * dt)
+            end = r[j] + (r[j + 1] - r[j]) * width / dt
+            out[a] += 0.5 * (r[j] + end) * width
+        out[a] += trend[0, a] * h + 0.5 * trend[1, a] * h * h
+    return out
+
+
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_the_batched_ar_fit_is_the_plain_least_squares_one(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    dt = 1 / RATE_HZ
+    t = np.arange(208) * dt
+    f = rng.normal(10.0, 1.0, (12, 3))
+    ph = rng.uniform(0, 2 * np.pi, (12, 3))
+    w = np.sum(0.05 * np.cos(2 * np.pi * f * t[:, None, None] + ph), axis=1)
+    w += rng.normal(scale=0.002, size=w.shape) + 0.03 * t[:, None] - 0.01
+    h = 0.016
+    y, c0, slope = prediction._detrend(w, dt)
+    coef = prediction._ar_fit(y, 4)
+    assert coef is not None
+    got = prediction._ar_run(y, coef, dt, h)
+    assert got is not None
+    got = got + c0 * h + 0.5 * slope * h * h
+    assert np.allclose(got, _reference_ar(w, 4, dt, h), rtol=1e-7, atol=1e-12)
+
+
+def test_an_axis_without_oscillation_is_carried_by_its_trend_alone() -> None:
+    dt = 1 / RATE_HZ
+    t = np.arange(208) * dt
+    w = np.zeros((len(t), 3))
+    w[:, 0] = 0.05 * np.sin(2 * np.pi * 9.5 * t) + 0.001 * np.cos(2 * np.pi * 31 * t)
+    w[:, 2] = 0.2 + 0.1 * t  # a turn speeding up, no tremor
+    y, _, _ = prediction._detrend(w, dt)
+    coef = prediction._ar_fit(y, 4)
+    assert coef is not None
+    assert np.all(coef[1:] == 0.0) and np.any(coef[0] != 0.0)
+
+
+def test_coefficients_fitted_less_often_predict_about_as_well() -> None:
+    every, sometimes = (_tremor_error("ar", refit) for refit in (0.0, 0.05))
+    assert sometimes < 1.1 * every
