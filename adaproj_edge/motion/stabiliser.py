@@ -197,7 +197,7 @@ class Stabiliser:
         # not yet learnt), then pulled towards the device
         self.R_s = self.R_s @ small_rotation(self._deliberate.value * dt)
         a = 1.0 - math.exp(-dt / tau)
-        if self._age_s < tau:
+        if 0.0 < self._age_s < tau:  # (two steps at one time: dt and age both 0)
             # started: a running mean of the orientations so far, not the first one
             # (which holds that instant's tremor, then left to decay with tau_still)
             a = max(a, dt / self._age_s)

@@ -129,3 +129,14 @@ def test_a_follower_started_mid_tremor_points_at_the_hand_s_mean_not_its_first_s
         worst = max(worst, float(np.linalg.norm(angles[held].mean(axis=0) - aim)))
     # (a follower that starts on its first sample keeps about the tremor's RMS here)
     assert worst < 0.3 * 0.004
+
+
+def test_two_steps_at_one_time_right_after_the_start_are_a_still_correction() -> None:
+    # a refresh repeated at the same time (dt 0) just after the follower started
+    st = Stabiliser(PROJ.K, SIZE)
+    st.add_gyro(0, np.zeros(3))
+    st.step(10_000_000)
+    st.add_gyro(2_400_000, np.array([0.01, 0.0, 0.0]))
+    a = st.step(10_000_000)
+    b = st.step(10_000_000)
+    assert np.all(np.isfinite(a.C)) and np.allclose(a.C, b.C)
