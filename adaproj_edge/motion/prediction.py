@@ -39,6 +39,7 @@ from adaproj_edge.arrays import FloatArray
 PredictMethod = Literal["ar", "constant", "none"]
 MAX_ROOT = 1.05  # a fit of a narrow-band oscillation has roots near the unit circle
 FLAT_RATE = 1e-9  # rad/s: residuals below this are rounding, nothing to fit
+RATE_PROBE = 33  # newest samples whose median interval is the sampling interval
 
 
 @dataclass(frozen=True)
@@ -150,7 +151,7 @@ class GyroTrack:
     def _integral(self, h: float) -> FloatArray:
         """The predicted rotation (rotation vector, 3) over the next ``h`` seconds."""
         s = self.settings
-        t, w = self.rates(min(self._n, 33))
+        t, w = self.rates(RATE_PROBE)  # enough to know the sampling interval
         newest: FloatArray = w[-1] - self.bias
         if s.method == "constant" or len(t) < 3:
             return newest * h
