@@ -179,12 +179,18 @@ class WarpSource:
         content_map: ContentMap,
         settings: WarpSettings,
         entry: PoseEntry,
+        frame_dt: float | None = None,
     ) -> tuple[Warp, RemapMaps]:
         """The content-aware refinement on ``entry``'s content-free warp (made for this
-        surface, or one within the pose cache's tolerance of it), and its maps."""
-        with self.times.timer("content_aware"):
-            warp = self.planner.refine(surface, content_map, settings, entry.content_free)
-        with self.times.timer("map"):
+        surface, or one within the pose cache's tolerance of it), and its maps.
+        ``frame_dt``: a clip's frame shown that many seconds after the last (bounded
+        warm steps, smoothed in time; timed as ``clip_refine``, ``clip_map``)."""
+        clip = frame_dt is not None
+        with self.times.timer("clip_refine" if clip else "content_aware"):
+            warp = self.planner.refine(
+                surface, content_map, settings, entry.content_free, frame_dt=frame_dt
+            )
+        with self.times.timer("clip_map" if clip else "map"):
             maps = self.display.maps(self.shown(warp), entry.weights)
         return warp, maps
 
