@@ -58,11 +58,11 @@ reported). It implements the link's
 :class:`~adaproj_edge.link.device.DeviceRuntime`; content arriving from the link's
 thread is queued and taken up by the runtime's own thread.
 
-This file is about 500 lines on purpose: the runtime's decisions (states, when to
-estimate, when to refine, what to show) stay in one class so the policy reads in one
-place; everything those decisions use lives in a module of its own (``gestures``,
-``surfaces``, ``warps``, ``output``, ``status``, ``telemetry``, ``content``,
-``laststate``).
+This file is about 650 lines on purpose: the runtime's decisions (states, when to
+estimate, when to refine, what to show, which clip frame) stay in one class so the
+policy reads in one place; everything those decisions use lives in a module of its own
+(``gestures``, ``surfaces``, ``warps``, ``output``, ``status``, ``telemetry``,
+``content``, ``playback``, ``laststate``).
 """
 
 from __future__ import annotations
