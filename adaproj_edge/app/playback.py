@@ -126,7 +126,8 @@ class Playback:
         VideoError
             The clip cannot be opened.
         """
-        return cls(ClipFrames(path, maps), name, start_ns, telemetry, on_error)
+        clip = ClipFrames(path, maps, log_failures=False)  # logged here, rate-limited
+        return cls(clip, name, start_ns, telemetry, on_error)
 
     @property
     def period(self) -> float:

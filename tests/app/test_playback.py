@@ -200,7 +200,7 @@ def test_a_frame_that_does_not_decode_keeps_the_last_good_one_and_logs_once(
     good = good.copy()
     data = path.read_bytes()
     path.write_bytes(data[: len(data) // 3])  # the file is cut while it plays
-    with caplog.at_level(logging.WARNING, logger="adaproj_edge.app.playback"):
+    with caplog.at_level(logging.WARNING):
         for k in range(4, 60):  # 3 s: every frame after the cut fails, a loop included
             clock.advance_to(t0 + k * 50 * MS)
             rt.tick()
@@ -208,7 +208,7 @@ def test_a_frame_that_does_not_decode_keeps_the_last_good_one_and_logs_once(
     assert errors >= 30  # counted, every one
     shown = rt.output.clean_frame
     assert shown is not None
-    last = [r for r in caplog.records if r.name == "adaproj_edge.app.playback"]
+    last = [r for r in caplog.records if r.name.startswith("adaproj_edge")]
     assert len(last) == 1 and "does not decode" in last[0].getMessage()  # logged once
     assert "keeping the last good frame" in last[0].getMessage()
     assert [e["event"] for e in rt.telemetry.events].count("clip_error") == 1
