@@ -4,6 +4,7 @@
     .venv/bin/python tools/make_app_goldens.py            # goldens of every session
     .venv/bin/python tools/make_app_goldens.py --session  # first the fault session
     .venv/bin/python tools/make_app_goldens.py --push     # first the push session
+    .venv/bin/python tools/make_app_goldens.py --video    # first the clip push session
     .venv/bin/python tools/make_app_goldens.py --only push  # only these sessions' goldens
 
 The fault session (``faults.mcap``) is a simulated cylinder session with faults put
@@ -18,6 +19,13 @@ SMP server through an in-memory line; every request's bytes are stored as
 ``/serial/rx`` and every reply as ``/serial/tx``, at virtual times from ``PUSH_AT_S``
 (1 MB/s on the line). The pushed file's name, size and SHA-256 are in the session
 metadata (key ``push``).
+
+The clip push session (``push-clip.mcap``) is the same with a short clip (an orange
+disc moving across blurred noise, :func:`push_clip`, MPEG-4 in ``.mp4``, 192x108,
+2 s at 12 fps) and a mask (the band the subject moves in) pushed at ``CLIP_AT_S`` and
+activated: the device plays it, looped; a tap-hold pauses it (``CLIP_PAUSE_S``) and
+another resumes it (``CLIP_RESUME_S``). Metadata key ``push``: both files' names,
+sizes and SHA-256, and the clip's size, rate and frame count.
 
 Everything is seeded, so the same command gives the same files. The tests never
 write these.
@@ -43,23 +51,35 @@ sys.path.insert(0, str(ROOT))
 
 from adaproj_edge.app.replay import FAULTS_KEY, ReplayOptions, replay_session  # noqa: E402
 from adaproj_edge.geometry.calibration import Calibration  # noqa: E402
+from adaproj_edge.hal.button import ButtonEvent  # noqa: E402
 from adaproj_edge.hal.depth import DepthFrame  # noqa: E402
 from adaproj_edge.link.device import StandaloneDevice  # noqa: E402
 from adaproj_edge.link.framing import FrameDecoder, encode_frame  # noqa: E402
 from adaproj_edge.link.server import Server  # noqa: E402
 from adaproj_edge.link.store import ContentStore  # noqa: E402
 from adaproj_edge.session import schemas  # noqa: E402
+from adaproj_edge.session.hand import HandMotion  # noqa: E402
 from adaproj_edge.session.records import SerialTraffic  # noqa: E402
-from adaproj_edge.session.simulator import T0_NS, Scene, SimulationSettings, simulate  # noqa: E402
+from adaproj_edge.session.simulator import (  # noqa: E402
+    HAND_KEY,
+    KEY_CODE,
+    T0_NS,
+    Scene,
+    SimulationSettings,
+    hand_metadata,
+    simulate,
+)
 from adaproj_edge.session.writer import SessionWriter  # noqa: E402
 from adaproj_edge.threads import apply_thread_policy  # noqa: E402
 from tests.app.golden import (  # noqa: E402
     FAULTS_SESSION,
     GOLDEN,
+    PUSH_CLIP_SESSION,
     PUSH_SESSION,
     golden_view,
     session_paths,
 )
+from tests.content.clips import subject_frame  # noqa: E402
 
 # (kind, start s, end s) from the start of the session
 DEPTH_FAULTS = [
@@ -181,8 +201,11 @@ class _Line:
         return data
 
 
-def push_traffic(data: bytes, name: str, t_ns: int) -> list[SerialTraffic]:
-    """The serial traffic of ``adaproj push IMAGE --activate`` starting at ``t_ns``."""
+def push_traffic(
+    data: bytes, name: str, t_ns: int, mask: tuple[bytes, str] | None = None
+) -> list[SerialTraffic]:
+    """The serial traffic of ``adaproj push IMAGE --activate`` starting at ``t_ns``
+    (with ``mask``, (bytes, name): the mask uploaded first and activated with it)."""
     from smpclient import SMPClient
     from smpclient.transport.serial import SMPSerialTransport
 
@@ -205,8 +228,11 @@ def push_traffic(data: bytes, name: str, t_ns: int) -> list[SerialTraffic]:
         async def go() -> None:
             c = SMPClient(transport, "memory", timeout_s=5.0)
             await c.connect()
+            if mask is not None:
+                await client.upload(c, mask[0], mask[1])
             await client.upload(c, data, name)
-            await client.call(c, client.ActivateWrite(image=name))
+            mask_name = None if mask is None else mask[1]
+            await client.call(c, client.ActivateWrite(image=name, mask=mask_name))
             await c.disconnect()
 
         asyncio.run(go())
@@ -249,6 +275,100 @@ def make_push_session() -> None:
     )
 
 
+CLIP_AT_S = 1.3
+CLIP_NAME = "moving.mp4"
+CLIP_MASK_NAME = "moving-mask.png"
+CLIP_SIZE = (192, 108)
+CLIP_FPS = 12.0
+CLIP_FRAMES = 24
+CLIP_SPEED = 4.0  # px a frame
+# tap-holds: (tap at s, second press at s, released at s)
+CLIP_PAUSE_S = (2.0, 2.15, 3.0)
+CLIP_RESUME_S = (3.3, 3.45, 4.3)
+CLIP_SECONDS = 5.6
+# still 3 s (the capture, the push, a pause), 0.4 s moving, still again: few
+# content-free solves (the replay's cost), most frames refined per frame
+CLIP_HAND = {"still_s": 3.0, "move_s": 0.4}
+
+
+def push_clip(path: Path) -> tuple[bytes, bytes]:
+    """The pushed clip (written to ``path``: MPEG-4, the OpenCV wheels' encoder) and its
+    mask (PNG: where the subject passes, dilated), as bytes."""
+    fourcc = cv2.VideoWriter_fourcc(*"mp4v")
+    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, fourcc, CLIP_FPS, CLIP_SIZE)
+    assert writer.isOpened()
+    band = np.zeros(CLIP_SIZE[::-1], bool)
+    for i in range(CLIP_FRAMES):
+        img, subject = subject_frame(i, CLIP_SIZE, CLIP_SPEED)
+        writer.write(img)
+        band |= subject
+    writer.release()
+    mask = cv2.dilate(band.astype(np.uint8) * 255, np.ones((9, 9), np.uint8))
+    ok, enc = cv2.imencode(".png", mask)
+    assert ok
+    return path.read_bytes(), bytes(enc.tobytes())
+
+
+def _tap_hold(tap_s: float, press_s: float, release_s: float) -> list[ButtonEvent]:
+    """A tap (100 ms), then a press held to ``release_s``: the tap-hold gesture."""
+    out = []
+    for t_s, pressed in ((tap_s, True), (tap_s + 0.1, False), (press_s, True), (release_s, False)):
+        ts = T0_NS + round(t_s * 1e9)
+        out.append(ButtonEvent(ts, ts + 1_000_000, KEY_CODE, pressed))
+    return out
+
+
+def make_push_clip_session() -> None:
+    scene = Scene.load("cylinder-convex")
+    cal = Calibration.default()
+    hand = HandMotion(CLIP_SECONDS, 41, **CLIP_HAND)
+    settings = SimulationSettings(
+        seconds=CLIP_SECONDS, depth_fps=5.0, seed=41, presses=(0.2,), motion=hand
+    )
+    recs = simulate(scene, cal, settings)
+    with tempfile.TemporaryDirectory() as tmp:
+        clip, mask = push_clip(Path(tmp) / CLIP_NAME)
+    t_ns = T0_NS + int(CLIP_AT_S * 1e9)
+    traffic = push_traffic(clip, CLIP_NAME, t_ns, (mask, CLIP_MASK_NAME))
+    buttons = _tap_hold(*CLIP_PAUSE_S) + _tap_hold(*CLIP_RESUME_S)
+    push = {
+        "name": CLIP_NAME,
+        "bytes": len(clip),
+        "sha256": hashlib.sha256(clip).hexdigest(),
+        "mask": CLIP_MASK_NAME,
+        "mask_bytes": len(mask),
+        "mask_sha256": hashlib.sha256(mask).hexdigest(),
+        "t_s": CLIP_AT_S,
+        "size": list(CLIP_SIZE),
+        "fps": CLIP_FPS,
+        "frames": CLIP_FRAMES,
+        "speed_px": CLIP_SPEED,
+        "pause_s": CLIP_PAUSE_S[2],
+        "resume_s": CLIP_RESUME_S[2],
+    }
+    meta = {
+        "source": "simulator",
+        "surface": json.dumps(scene.spec),
+        "seed": str(settings.seed),
+        "seconds": str(settings.seconds),
+        "push": json.dumps(push),
+        HAND_KEY: json.dumps(hand_metadata(hand)),
+    }
+    merged = sorted([*recs, *traffic, *buttons], key=lambda r: r.receive_ns)
+    tmp_path = PUSH_CLIP_SESSION.with_name(PUSH_CLIP_SESSION.name + ".part")
+    with SessionWriter(tmp_path, cal, meta, T0_NS) as w:
+        w.attach_json(schemas.TRUTH_SURFACE_ATTACHMENT, scene.spec, T0_NS)
+        for r in merged:
+            w.write(r)
+    os.replace(tmp_path, PUSH_CLIP_SESSION)
+    n_rx = sum(1 for t in traffic if t.direction == "rx")
+    print(
+        f"wrote {PUSH_CLIP_SESSION} ({PUSH_CLIP_SESSION.stat().st_size} bytes; "
+        f"{len(clip)}-byte clip and {len(mask)}-byte mask pushed in {n_rx} requests "
+        f"at {CLIP_AT_S} s)"
+    )
+
+
 def make_goldens(only: list[str] | None = None) -> None:
     """Replay the sessions and write their goldens; ``only``: just these, the others'
     entries are kept as they are."""
@@ -274,6 +394,7 @@ def main() -> int:
     )
     ap.add_argument("--session", action="store_true", help="regenerate faults.mcap first")
     ap.add_argument("--push", action="store_true", help="regenerate push.mcap first")
+    ap.add_argument("--video", action="store_true", help="regenerate push-clip.mcap first")
     ap.add_argument(
         "--only", nargs="+", metavar="NAME", help="rewrite only these sessions' goldens"
     )
@@ -283,6 +404,8 @@ def main() -> int:
         make_fault_session()
     if args.push or not PUSH_SESSION.exists():
         make_push_session()
+    if args.video or not PUSH_CLIP_SESSION.exists():
+        make_push_clip_session()
     make_goldens(args.only)
     return 0
 

@@ -5,6 +5,11 @@ from the link's store, or the built-in poster. Its content map is made by a
 :data:`ContentMapFn`: on the device the saliency model max the user mask
 (:class:`SaliencyMaps`, which reruns the model only for a new image), in replays the
 user mask alone (:func:`mask_content_map`: no model needed).
+
+A clip's frames get their maps from a :data:`ClipMapsFn`
+(:func:`clip_maps_of`): on the device the same saliency model through a
+:class:`~adaproj_edge.content.temporal.TemporalContentMap` with faces tracked; in
+replays the replay's :data:`ContentMapFn` (the mask alone) through one.
 """
 
 from __future__ import annotations
@@ -12,6 +17,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -20,8 +26,10 @@ from adaproj_edge.content.builtin import poster, poster_mask
 from adaproj_edge.content.cache import ContentMapper
 from adaproj_edge.content.contentmap import DEFAULT_THRESHOLD, ContentMap
 from adaproj_edge.content.faces import FaceDetector
+from adaproj_edge.content.facetrack import FaceTracker
 from adaproj_edge.content.intake import read_content
 from adaproj_edge.content.model import SaliencyModel
+from adaproj_edge.content.temporal import TemporalContentMap
 from adaproj_edge.link.device import Content, Settings
 
 ContentMapFn = Callable[[str, Image, Float32Array | None, float], ContentMap]
@@ -30,12 +38,15 @@ ContentMapFn = Callable[[str, Image, Float32Array | None, float], ContentMap]
 
 @dataclass
 class Item:
-    """A content item: its image, content map (None: uniform) and settings."""
+    """A content item: its image, content map (None: uniform) and settings; a clip also
+    has its file (``image``, ``content_map``: its first frame's) and the user mask."""
 
     name: str
     image: Image
     content_map: ContentMap | None
     settings: Settings = field(default_factory=Settings)
+    clip: Path | None = None
+    mask: Float32Array | None = None
 
     @property
     def size(self) -> tuple[int, int]:
@@ -73,6 +84,50 @@ class SaliencyMaps:
         m = self._mapper.content_map(name)
         return ContentMap(m.values, m.content_size, threshold, m.faces)
 
+    def clip_maps(self, item: Item) -> TemporalContentMap:
+        """The content maps of clip ``item``'s frames: this model (shared), faces
+        detected and tracked, the item's mask."""
+        if self._model is None:
+            self._model = SaliencyModel()
+        return TemporalContentMap(
+            item.size,
+            self._model,
+            mask=item.mask,
+            tracker=FaceTracker(FaceDetector()),
+            threshold=item.settings.threshold,
+        )
+
+
+ClipMapsFn = Callable[[Item], TemporalContentMap]
+"""Clip item -> the content maps of its frames, in order."""
+
+
+class MapFnSaliency:
+    """A :data:`ContentMapFn` standing in for the saliency model on a clip's frames (no
+    mask: :class:`~adaproj_edge.content.temporal.TemporalContentMap` adds the item's)."""
+
+    def __init__(self, fn: ContentMapFn, name: str, threshold: float) -> None:
+        self.fn, self.name, self.threshold = fn, name, threshold
+
+    def predict(self, image_bgr: Image) -> Float32Array:
+        """The map ``fn`` gives the frame, values in [0, 1]."""
+        return np.asarray(self.fn(self.name, image_bgr, None, self.threshold).values, np.float32)
+
+
+def clip_maps_of(fn: ContentMapFn) -> ClipMapsFn:
+    """How the runtime maps a clip's frames when its still content maps come from ``fn``:
+    :meth:`SaliencyMaps.clip_maps` for the device's, ``fn`` per frame otherwise."""
+    if isinstance(fn, SaliencyMaps):
+        return fn.clip_maps
+
+    def maps(item: Item) -> TemporalContentMap:
+        t = item.settings.threshold
+        return TemporalContentMap(
+            item.size, MapFnSaliency(fn, item.name, t), mask=item.mask, threshold=t
+        )
+
+    return maps
+
 
 def load_item(content: Content, content_map_fn: ContentMapFn) -> Item:
     """The item of ``content`` (files in the store): read, checked, its content map made.
@@ -85,7 +140,8 @@ def load_item(content: Content, content_map_fn: ContentMapFn) -> Item:
     files = read_content(content.image, content.mask)
     name = content.image.name
     cmap = content_map_fn(name, files.image, files.mask, content.settings.threshold)
-    return Item(name, files.image, cmap, content.settings)
+    clip = content.image if files.video else None
+    return Item(name, files.image, cmap, content.settings, clip, files.mask)
 
 
 class Inbox:

@@ -1,8 +1,10 @@
-"""One button, four gestures.
+"""One button, five gestures.
 
 - **press** (short, alone): reported once the double-press window has passed;
 - **double** press: the second press within ``double_press_s`` of the first release;
 - **long** press: held ``long_press_s`` or more (reported on release);
+- **tap-hold**: a short press, then within ``double_press_s`` of its release a second
+  press held ``long_press_s`` or more (reported on release; pauses or resumes a clip);
 - **hold**: held ``hold_s`` or more (reported while still held, as soon as the time is
   up, so the user knows to let go; the release that follows is no gesture).
 """
@@ -13,7 +15,7 @@ from typing import Literal
 
 from adaproj_edge.hal.button import ButtonEvent
 
-Gesture = Literal["press", "double", "long", "hold"]
+Gesture = Literal["press", "double", "long", "tap_hold", "hold"]
 
 
 class Gestures:
@@ -40,8 +42,8 @@ class Gestures:
         self._held = False  # the press down now was reported as a hold
 
     def on_button(self, ev: ButtonEvent) -> Gesture | None:
-        """A long or double press completed by ``ev``, else None (a single press waits
-        for :meth:`tick`)."""
+        """A long, tap-hold or double press completed by ``ev``, else None (a single
+        press waits for :meth:`tick`)."""
         if ev.pressed:
             self._press_ns = ev.receive_ns
             self._held = False
@@ -53,10 +55,11 @@ class Gestures:
         held = ev.receive_ns - self._press_ns
         press = self._press_ns
         self._press_ns = None
+        tapped = self._single_ns is not None and press - self._single_ns <= self.double_ns
         if held >= self.long_ns:
             self._single_ns = None
-            return "long"
-        if self._single_ns is not None and press - self._single_ns <= self.double_ns:
+            return "tap_hold" if tapped else "long"
+        if tapped:
             self._single_ns = None
             return "double"
         self._single_ns = ev.receive_ns
@@ -64,7 +67,8 @@ class Gestures:
 
     def tick(self, now_ns: int) -> Gesture | None:
         """Return "hold" once the button has been down ``hold_s``; "press" once a single
-        press has waited out the double-press window."""
+        press has waited out the double-press window (not while a second press that
+        began inside the window is still down: it may become a double or a tap-hold)."""
         if (
             self._press_ns is not None
             and not self._held
@@ -73,7 +77,10 @@ class Gestures:
             self._held = True
             self._single_ns = None
             return "hold"
-        if self._single_ns is not None and now_ns - self._single_ns > self.double_ns:
+        single, down = self._single_ns, self._press_ns
+        if single is not None and down is not None and down - single <= self.double_ns:
+            return None  # a second press is down: decided on its release
+        if single is not None and now_ns - single > self.double_ns:
             self._single_ns = None
             return "press"
         return None

@@ -10,6 +10,8 @@ Gestures (one button, :mod:`adaproj_edge.app.gestures`)
 - **press**: capture the surface and project; while projecting, re-aim.
 - **double press**: next content item.
 - **long press**: toggle content-aware / plain (no pre-warp) projection.
+- **tap-hold** (a short press, then a second one held like a long press): pause or
+  resume the clip being played.
 - **hold** (``calibrate_hold_s``, 5 s): calibrate. The runtime only raises
   :attr:`Runtime.calibration_wanted`; the device loop (:mod:`adaproj_edge.app.live`)
   hands the devices to the calibration procedure and gives the result back through
@@ -27,6 +29,15 @@ average (into the pose cache, nothing shown) and the next runs the content-aware
 refinement on it; after that the warp is redone only when the average has improved
 (``refine_at_frames``) or the surface moved more than ``hysteresis_rel``, so a still
 hand gives a still image.
+
+Clips
+-----
+When the active item is a clip, every tick shows the frame due at the clip's own rate
+(:class:`~adaproj_edge.app.playback.Playback`: looped, paused and resumed, a frame that
+does not decode keeps the last good one up): while projecting content-aware, refined
+per frame from the pose's content-free warp (the planner's ``frame_dt`` path); in the
+other states through the maps shown. Surface updates draw the clip's current frame
+with its current content map.
 
 Faults
 ------
@@ -47,11 +58,11 @@ reported). It implements the link's
 :class:`~adaproj_edge.link.device.DeviceRuntime`; content arriving from the link's
 thread is queued and taken up by the runtime's own thread.
 
-This file is about 500 lines on purpose: the runtime's decisions (states, when to
-estimate, when to refine, what to show) stay in one class so the policy reads in one
-place; everything those decisions use lives in a module of its own (``gestures``,
-``surfaces``, ``warps``, ``output``, ``status``, ``telemetry``, ``content``,
-``laststate``).
+This file is about 650 lines on purpose: the runtime's decisions (states, when to
+estimate, when to refine, what to show, which clip frame) stay in one class so the
+policy reads in one place; everything those decisions use lives in a module of its own
+(``gestures``, ``surfaces``, ``warps``, ``output``, ``status``, ``telemetry``,
+``content``, ``playback``, ``laststate``).
 """
 
 from __future__ import annotations
@@ -64,17 +75,27 @@ from typing import Any
 
 import numpy as np
 
-from adaproj_edge.app.content import ContentMapFn, Inbox, Item, SaliencyMaps, load_item
+from adaproj_edge.app.content import (
+    ClipMapsFn,
+    ContentMapFn,
+    Inbox,
+    Item,
+    SaliencyMaps,
+    clip_maps_of,
+    load_item,
+)
 from adaproj_edge.app.display_loop import DisplayLoop
 from adaproj_edge.app.gestures import Gesture, Gestures
 from adaproj_edge.app.laststate import LastWarp
 from adaproj_edge.app.output import FrameHook, Output
+from adaproj_edge.app.playback import Playback
 from adaproj_edge.app.settings import AppSettings
 from adaproj_edge.app.status import Faults
 from adaproj_edge.app.surfaces import SurfaceSource
 from adaproj_edge.app.telemetry import Telemetry, probes
 from adaproj_edge.app.warps import PoseEntry, WarpSource
 from adaproj_edge.arrays import Float32Array, FloatArray, Image
+from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.errors import AdaprojError
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.depth.estimate import SurfaceEstimate
@@ -117,6 +138,7 @@ class Runtime:
         content_map_fn: ContentMapFn | None = None,
         on_frame: FrameHook | None = None,
         state_dir: Path | None = None,
+        clip_maps: ClipMapsFn | None = None,
     ) -> None:
         if not items:
             raise AdaprojError("the runtime needs at least one content item")
@@ -127,6 +149,8 @@ class Runtime:
         self.items = list(items)
         self.current = 0
         self.content_map_fn: ContentMapFn = content_map_fn or SaliencyMaps()
+        self.clip_maps = clip_maps or clip_maps_of(self.content_map_fn)
+        self.playback: Playback | None = None  # the active item's, when it is a clip
         self.last_warp = LastWarp(state_dir)
         self.telemetry = t = Telemetry(s.history)
         self.motion = MotionTracker(calibration.R_P_I, s.motion)
@@ -147,6 +171,8 @@ class Runtime:
         self._shown_depth: FloatArray | None = None
         self._refine_pending = False
         self._settle_prepared = False
+        self._shown_kind = "plain"  # what the last surface update showed
+        self._entry: PoseEntry | None = None  # and the pose it showed
         self._shown_frames = 0
         self._captured = 0
         self._capture_ns = 0
@@ -207,12 +233,14 @@ class Runtime:
         """Show the active content with the last good warp (kept in ``state_dir``)
         when it fits, plainly otherwise, and wait for the button."""
         self._set_state(State.BOOT)
+        self._play_item()
         warp = self.last_warp.load(self.calibration.projector, self.item.size)
         if warp is not None:
             self.shown_map = None
             self.output.content = self.item.name
             self.output.set(warp, self.warps.maps(warp))
-            self.output.render(self.item.image, "boot", "last-warp")
+            self.output.render(self._image(), "boot", "last-warp")
+            self._shown_kind, self._entry = "last-warp", None
         else:
             self._show_plain("boot")
         self._set_state(State.IDLE)
@@ -263,6 +291,7 @@ class Runtime:
         gesture = self.gestures.tick(now)
         if gesture is not None:
             self._gesture(gesture)
+        self._play_clip(now)
         s = self.settings
         if (
             self.state == State.CAPTURING
@@ -352,11 +381,16 @@ class Runtime:
         elif kind == "double":
             self.current = (self.current + 1) % len(self.items)
             self._event("content", item=self.item.name)
+            self._play_item()
             self._reshow("next item")
         elif kind == "long":
             self.plain = not self.plain
             self._event("mode", plain=self.plain)
             self._reshow("mode")
+        elif kind == "tap_hold":
+            if self.playback is not None:
+                paused = self.playback.toggle(self._now())
+                self._event("clip", item=self.item.name, paused=paused)
         elif kind == "hold":
             self.calibration_wanted = True
 
@@ -477,9 +511,10 @@ class Runtime:
         kind = "content-aware" if aware else "content-free"
         try:
             entry, hit = self._pose(surface, frames, refine)
-            if aware and item.content_map is not None:
+            cmap = self._content_map()
+            if aware and cmap is not None:
                 settings = self._warp_settings()
-                warp, maps = self.warps.content_aware(surface, item.content_map, settings, entry)
+                warp, maps = self.warps.content_aware(surface, cmap, settings, entry)
                 self.telemetry.count("content_aware")
             else:
                 warp, maps = entry.warp, self.warps.content_free_maps(entry)
@@ -491,7 +526,8 @@ class Runtime:
         self._shown_depth = surface.points[..., 2].astype(np.float64)
         self.output.content = item.name
         self.output.set(warp, maps)
-        frame = self.output.render(item.image, reason, kind, notify=False)
+        self._shown_kind, self._entry = kind, entry
+        frame = self.output.render(self._image(), reason, kind, notify=False)
         t_end = time.perf_counter()
         elapsed = t_end - t0
         # the update itself (surface -> frame shown), and with the depth frame's surface
@@ -526,7 +562,67 @@ class Runtime:
         self.output.set(*self.warps.plain(self.item.size))
         self.shown_map = None
         self._shown_depth = None
-        self.output.render(self.item.image, reason, "plain")
+        self._shown_kind, self._entry = "plain", None
+        self.output.render(self._image(), reason, "plain")
+
+    # ------------------------------------------------------------------ clips
+    def _image(self) -> Image:
+        """The active item's picture now: a clip's current frame."""
+        pb = self.playback
+        return pb.current.image if pb is not None and pb.current is not None else self.item.image
+
+    def _content_map(self) -> ContentMap | None:
+        """The active item's content map now: a clip's current frame's."""
+        pb = self.playback
+        if pb is not None and pb.current is not None:
+            return pb.current.content_map
+        return self.item.content_map
+
+    def _play_item(self) -> None:
+        """Start playing the active item when it is a clip (stop the one played)."""
+        if self.playback is not None:
+            self.playback.close()
+            self.playback = None
+        item = self.item
+        if item.clip is None:
+            return
+        try:
+            self.playback = Playback.open(
+                item.clip,
+                self.clip_maps(item),
+                item.name,
+                self._now(),
+                self.telemetry,
+                self.faults.note_error,
+            )
+        except AdaprojError as e:  # its first frame is shown as a still
+            self._event("clip_error", item=item.name, message=str(e))
+            self.faults.note_error(f"{item.name}: {e}")
+            log.warning("%s: cannot play: %s", item.name, e)
+            return
+        self.warps.planner.forget()  # another content: no warm start from the last
+        self._event("clip", item=item.name, paused=False)
+
+    def _play_clip(self, now: int) -> None:
+        """Show the clip's frame due ``now`` (one at most)."""
+        pb = self.playback
+        if pb is None or not pb.due(now):
+            return
+        step = pb.advance(now)
+        if step is None:
+            return  # did not decode: the last good frame stays up
+        kind = self._shown_kind
+        if kind == "content-aware" and self._entry is not None and self.surface is not None:
+            try:
+                warp, maps = self.warps.content_aware(
+                    self.surface, step.content_map, self._warp_settings(), self._entry, step.dt
+                )
+            except AdaprojError as e:
+                self._fault("warp", f"no warp for this clip frame: {e}")
+                return
+            self.output.set(warp, maps)
+        self.output.render(step.image, "clip", kind)
+        pb.shown(self._now())
 
     # ------------------------------------------------------------------ link side
     def activate(self, content: Content) -> None:
@@ -547,6 +643,7 @@ class Runtime:
                 self.items.append(item)
                 self.current = len(self.items) - 1
             self._event("content", item=item.name, source="link")
+            self._play_item()
             self._reshow("new content")
 
     def status(self) -> dict[str, Any]:
@@ -566,6 +663,7 @@ class Runtime:
             "faults": dict(self.faults.active),
             "errors": self.faults.errors[-5:],
             "counters": dict(self.counters),
+            "clip": None if self.playback is None else self.playback.status(self._now()),
         }
 
     def frame_png(self) -> bytes:

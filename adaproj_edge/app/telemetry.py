@@ -29,6 +29,10 @@ COUNTERS = (
     "frames_shown",
     "refreshes",
     "refresh_misses",
+    "clip_frames",
+    "clip_skipped",
+    "clip_late",
+    "clip_errors",
 )
 
 

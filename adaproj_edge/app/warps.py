@@ -6,8 +6,8 @@ the pose cache between them.
 A pose's entry holds its content-free warp, the pixel weights of its mesh (every warp of
 that pose maps through them) and, once shown, the content-free warp's own maps. Lookups
 key on the IMU orientation, a depth signature and "up" (gravity), and every candidate
-is checked node by node against the current surface and for the same "up" (within
-``up_match_rad``; :mod:`adaproj_edge.warp.posecache`).
+is checked node by node against the current surface, for the same "up" (within
+``up_match_rad``; :mod:`adaproj_edge.warp.posecache`) and for the content's size.
 
 Every map drawn for the display has the content inset by the stabilisation margin
 (:func:`~adaproj_edge.render.reproject.inset_warp`): the warps themselves (cached,
@@ -142,11 +142,14 @@ class WarpSource:
         key += content_size
         t_lookup = time.perf_counter()
 
-        def same_up(e: PoseEntry) -> bool:
-            return float(np.linalg.norm(e.up - up)) <= s.up_match_rad
+        def fits(e: PoseEntry) -> bool:
+            # the same "up", and made for content of this size: an entry found by its
+            # surface alone may be another item's (its content coordinates another scale)
+            same_up = float(np.linalg.norm(e.up - up)) <= s.up_match_rad
+            return same_up and e.warp.content_size == content_size
 
         entry = (
-            self.poses.get(key, depth, s.cache_match_rel, min_frames=min_frames, accept=same_up)
+            self.poses.get(key, depth, s.cache_match_rel, min_frames=min_frames, accept=fits)
             if self.caching
             else None
         )
@@ -179,12 +182,18 @@ class WarpSource:
         content_map: ContentMap,
         settings: WarpSettings,
         entry: PoseEntry,
+        frame_dt: float | None = None,
     ) -> tuple[Warp, RemapMaps]:
         """The content-aware refinement on ``entry``'s content-free warp (made for this
-        surface, or one within the pose cache's tolerance of it), and its maps."""
-        with self.times.timer("content_aware"):
-            warp = self.planner.refine(surface, content_map, settings, entry.content_free)
-        with self.times.timer("map"):
+        surface, or one within the pose cache's tolerance of it), and its maps.
+        ``frame_dt``: a clip's frame shown that many seconds after the last (bounded
+        warm steps, smoothed in time; timed as ``clip_refine``, ``clip_map``)."""
+        clip = frame_dt is not None
+        with self.times.timer("clip_refine" if clip else "content_aware"):
+            warp = self.planner.refine(
+                surface, content_map, settings, entry.content_free, frame_dt=frame_dt
+            )
+        with self.times.timer("clip_map" if clip else "map"):
             maps = self.display.maps(self.shown(warp), entry.weights)
         return warp, maps
 

@@ -89,6 +89,11 @@ def run(args: argparse.Namespace) -> int:
             f"{dropped} bad frames dropped), {link['content_activations']} content "
             f"activations, {link['tx_mismatches']} replies differ from the recording"
         )
+    if c.get("clip_frames"):
+        print(
+            f"  clip: {c['clip_frames']} frames shown, {c['clip_skipped']} skipped, "
+            f"{c['clip_late']} late, {c['clip_errors']} did not decode"
+        )
     for d in s["distortion"]:
         print(
             f"  t={d['t_s']:.2f}s angle error shown {d['shown_angle_error']:.4f} "

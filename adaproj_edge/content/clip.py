@@ -37,6 +37,8 @@ class ClipFrames:
         The clip's content maps (sized for the clip's frames, the item's mask in it).
     info : VideoInfo, optional
         The clip's probe (probed again when not given).
+    log_failures : bool
+        Whether the reader logs frames that do not decode (once per loop).
 
     Raises
     ------
@@ -49,8 +51,9 @@ class ClipFrames:
         path: str | os.PathLike[str],
         maps: TemporalContentMap,
         info: VideoInfo | None = None,
+        log_failures: bool = True,
     ) -> None:
-        self.reader = VideoReader(path, info)
+        self.reader = VideoReader(path, info, log_failures)
         self.maps = maps
         if maps.content_size != self.size:
             raise ValueError(f"content maps sized {maps.content_size} for a {self.size} clip")

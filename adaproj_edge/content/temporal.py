@@ -24,6 +24,7 @@ gives its own map (no fade-in). A jump in the clip (a loop, a seek) should call
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,7 +40,15 @@ from adaproj_edge.content.contentmap import (
 )
 from adaproj_edge.content.faces import NO_FACES, face_map
 from adaproj_edge.content.facetrack import FaceTracker
-from adaproj_edge.content.model import SaliencyModel
+
+
+class Saliency(Protocol):
+    """What gives a frame's saliency: :class:`~adaproj_edge.content.model.SaliencyModel`
+    on the device; a replay without the model passes a stand-in."""
+
+    def predict(self, image_bgr: NDArray[np.uint8]) -> NDArray[np.float32]:
+        """Saliency of a whole frame, (h, w) float32 in [0, 1] at any size of its aspect."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -70,8 +79,8 @@ class TemporalContentMap:
     ----------
     content_size : (w, h)
         The clip's frame size.
-    model : SaliencyModel
-        The saliency model (one session, reused).
+    model : Saliency
+        The saliency model (one session, reused; anything with its ``predict``).
     mask : (h_m, w_m) float array in [0, 1], optional
         The item's user mask at any size of the clip's aspect (applies to every frame).
     tracker : FaceTracker, optional
@@ -86,7 +95,7 @@ class TemporalContentMap:
     def __init__(
         self,
         content_size: tuple[int, int],
-        model: SaliencyModel,
+        model: Saliency,
         *,
         mask: NDArray[np.floating] | None = None,
         tracker: FaceTracker | None = None,

@@ -299,6 +299,9 @@ class VideoReader:
         The clip (passed :func:`check_video`).
     info : VideoInfo, optional
         Its probe; probed again when not given.
+    log_failures : bool
+        Log a frame that does not decode (once per loop); False leaves it to the caller
+        (the device's playback rate-limits its own).
 
     Raises
     ------
@@ -306,9 +309,15 @@ class VideoReader:
         The clip cannot be opened.
     """
 
-    def __init__(self, path: str | os.PathLike[str], info: VideoInfo | None = None) -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        info: VideoInfo | None = None,
+        log_failures: bool = True,
+    ) -> None:
         self.path = Path(path)
         self.info = info or probe(self.path)
+        self.log_failures = log_failures
         if self.info.frame_count <= 0 or self.info.fps <= 0:
             raise VideoError(f"{self.path.name} has no frames to play")
         self._cap: Any = None
@@ -330,7 +339,8 @@ class VideoReader:
 
     def _failure(self, index: int) -> VideoFrame:
         reason = f"frame {index + 1} of {self.info.frame_count} does not decode"
-        if not self._failed:  # once per loop: a broken file fails at every frame after
+        # once per loop: a broken file fails at every frame after
+        if not self._failed and self.log_failures:
             log.warning("%s: %s; keeping the last good frame", self.path.name, reason)
         self._failed = True
         return VideoFrame(index, self._loop, self.time_of(index, self._loop), self._last, reason)

@@ -16,6 +16,7 @@ APP = FIXTURES / "app"
 GOLDEN = APP / "golden.json"
 FAULTS_SESSION = APP / "faults.mcap"
 PUSH_SESSION = APP / "push.mcap"
+PUSH_CLIP_SESSION = APP / "push-clip.mcap"
 COUNTERS = (
     "content_free",
     "content_aware",
@@ -25,6 +26,7 @@ COUNTERS = (
     "skipped_frames",
     "frames_shown",
 )
+CLIP = ("clip_frames", "clip_skipped", "clip_late", "clip_errors")
 LINK = ("requests", "refused", "ignored", "content_activations", "replies", "tx_mismatches")
 PROBE_TOL_PX = 0.5
 ITERATION_TOL = 1
@@ -36,6 +38,7 @@ def session_paths() -> dict[str, Path]:
     out = {p.stem: p for p in sorted(SESSIONS.glob("*.mcap"))}
     out["faults"] = FAULTS_SESSION
     out["push"] = PUSH_SESSION
+    out["push-clip"] = PUSH_CLIP_SESSION
     return out
 
 
@@ -52,6 +55,7 @@ def golden_view(summary: dict[str, Any]) -> dict[str, Any]:
             {k: f[k] for k in ("t_s", "kind", "faults", "mean_bgr")} for f in summary["frames"]
         ],
         "link": {k: summary["link"][k] for k in LINK},
+        "clip": {k: summary["counters"].get(k, 0) for k in CLIP},
     }
 
 
@@ -63,6 +67,8 @@ def differences(got: dict[str, Any], want: dict[str, Any]) -> list[str]:
             out.append(f"{key}: {got[key]} != {want[key]}")
     if "link" in want and got["link"] != want["link"]:  # goldens older than the link replay
         out.append(f"link: {got['link']} != {want['link']}")
+    if "clip" in want and got["clip"] != want["clip"]:  # goldens older than clip playback
+        out.append(f"clip: {got['clip']} != {want['clip']}")
     if len(got["updates"]) != len(want["updates"]):
         out.append(f"updates: {len(got['updates'])} != {len(want['updates'])}")
     for i, (g, w) in enumerate(zip(got["updates"], want["updates"], strict=False)):
