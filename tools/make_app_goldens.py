@@ -42,6 +42,7 @@ import sys
 import tempfile
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -260,19 +261,26 @@ def make_push_session() -> None:
         "seconds": str(settings.seconds),
         "push": json.dumps(push),
     }
-    merged = sorted([*recs, *traffic], key=lambda r: r.receive_ns)
-    PUSH_SESSION.parent.mkdir(parents=True, exist_ok=True)
-    tmp = PUSH_SESSION.with_name(PUSH_SESSION.name + ".part")
-    with SessionWriter(tmp, cal, meta, T0_NS) as w:
-        w.attach_json(schemas.TRUTH_SURFACE_ATTACHMENT, scene.spec, T0_NS)
-        for r in merged:
-            w.write(r)
-    os.replace(tmp, PUSH_SESSION)
+    _write_session(PUSH_SESSION, cal, meta, scene.spec, [*recs, *traffic])
     n_rx = sum(1 for t in traffic if t.direction == "rx")
     print(
         f"wrote {PUSH_SESSION} ({PUSH_SESSION.stat().st_size} bytes; {len(data)}-byte PNG "
         f"pushed in {n_rx} requests at {PUSH_AT_S} s)"
     )
+
+
+def _write_session(
+    path: Path, cal: Calibration, meta: dict[str, str], spec: object, records: list[Any]
+) -> None:
+    """Write ``records`` (sorted by receive time) with the truth surface ``spec`` to
+    ``path``, atomically (a ``.part`` file renamed)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".part")
+    with SessionWriter(tmp, cal, meta, T0_NS) as w:
+        w.attach_json(schemas.TRUTH_SURFACE_ATTACHMENT, spec, T0_NS)
+        for r in sorted(records, key=lambda r: r.receive_ns):
+            w.write(r)
+    os.replace(tmp, path)
 
 
 CLIP_AT_S = 1.3
@@ -354,13 +362,7 @@ def make_push_clip_session() -> None:
         "push": json.dumps(push),
         HAND_KEY: json.dumps(hand_metadata(hand)),
     }
-    merged = sorted([*recs, *traffic, *buttons], key=lambda r: r.receive_ns)
-    tmp_path = PUSH_CLIP_SESSION.with_name(PUSH_CLIP_SESSION.name + ".part")
-    with SessionWriter(tmp_path, cal, meta, T0_NS) as w:
-        w.attach_json(schemas.TRUTH_SURFACE_ATTACHMENT, scene.spec, T0_NS)
-        for r in merged:
-            w.write(r)
-    os.replace(tmp_path, PUSH_CLIP_SESSION)
+    _write_session(PUSH_CLIP_SESSION, cal, meta, scene.spec, [*recs, *traffic, *buttons])
     n_rx = sum(1 for t in traffic if t.direction == "rx")
     print(
         f"wrote {PUSH_CLIP_SESSION} ({PUSH_CLIP_SESSION.stat().st_size} bytes; "

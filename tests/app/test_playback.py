@@ -30,9 +30,7 @@ from adaproj_edge.geometry.analytic import get_surface
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.button import ButtonEvent
 from adaproj_edge.hal.clock import VirtualClock
-from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.display import MemoryDisplay
-from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.link.device import Content, Settings
 from adaproj_edge.render.frame import render_frame
 from adaproj_edge.session.hand import HandMotion
@@ -40,6 +38,7 @@ from adaproj_edge.session.reader import Scan, iter_records
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate
 from tests.app.golden import GOLDEN, PUSH_CLIP_SESSION, differences, golden_view
+from tests.app.records import feed_records
 from tests.content.clips import subject_frame, write_clip
 from tests.distortion import in_mask, measure
 
@@ -236,21 +235,6 @@ def still_session() -> list[object]:
     return list(simulate(Scene.load(SCENE), CAL, settings))
 
 
-def _feed(rt: Runtime, clock: VirtualClock, records: list[object]) -> None:
-    for r in records:
-        t = getattr(r, "receive_ns", None)
-        if t is None:
-            continue
-        clock.advance_to(t)
-        rt.tick()
-        if isinstance(r, ImuSample):
-            rt.on_imu(r)
-        elif isinstance(r, DepthFrame):
-            rt.on_depth(r)
-        elif isinstance(r, ButtonEvent):
-            rt.on_button(r)
-
-
 def test_projecting_the_warp_follows_the_subject_fold_free_and_not_worse_than_content_free(
     tmp_path: Path, still_session: list[object]
 ) -> None:
@@ -261,7 +245,7 @@ def test_projecting_the_warp_follows_the_subject_fold_free_and_not_worse_than_co
     path = tmp_path / "subject.avi"
     truth = write_subject_clip(path)
     rt, clock, _ = runtime()
-    _feed(rt, clock, still_session)
+    feed_records(rt, clock, still_session)
     assert rt.state == State.PROJECTING and rt.telemetry.updates[-1]["kind"] == "content-aware"
     t0 = play(rt, clock, path, THRESHOLD)
     entry = rt._entry

@@ -25,6 +25,7 @@ from adaproj_edge.link.device import Content, Settings
 from adaproj_edge.motion.tracker import MotionTracker
 from adaproj_edge.session.hand import HandMotion
 from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate
+from tests.app.records import feed_records
 
 CAL = Calibration.default()
 MS = 1_000_000
@@ -105,24 +106,9 @@ def still_records() -> list[object]:
     return list(simulate(Scene.load("cylinder-convex"), CAL, settings))
 
 
-def _feed(rt: Runtime, clock: VirtualClock, records: list[object]) -> None:
-    for r in records:
-        t = getattr(r, "receive_ns", None)
-        if t is None:
-            continue
-        clock.advance_to(t)
-        rt.tick()
-        if isinstance(r, ImuSample):
-            rt.on_imu(r)
-        elif isinstance(r, DepthFrame):
-            rt.on_depth(r)
-        elif isinstance(r, ButtonEvent):
-            rt.on_button(r)
-
-
 def test_a_still_hand_gives_a_still_image(still_records: list[object]) -> None:
     rt, clock, _display = _runtime()
-    _feed(rt, clock, still_records)
+    feed_records(rt, clock, still_records)
     assert rt.state == State.PROJECTING
     assert not [e for e in rt.telemetry.events if e["event"] == "moving"]
     # the capture, then at most one re-warp as the average of more frames settles
@@ -137,7 +123,7 @@ def test_the_history_the_runtime_keeps_is_bounded(still_records: list[object]) -
     settings = AppSettings(history=3, refine_at_frames=(3, 4, 5, 6, 7, 8))
     rt = Runtime(CAL, display, clock, [builtin_item()], settings, mask_content_map)
     rt.boot()
-    _feed(rt, clock, still_records)
+    feed_records(rt, clock, still_records)
     assert rt.telemetry.update_count > 3 and len(rt.telemetry.updates) == 3
     assert len(rt.telemetry.events) <= 3 and len(rt.telemetry.states) <= 3
     assert all(len(v) <= 3 for v in rt.telemetry.times.samples.values())
@@ -151,7 +137,7 @@ def test_once_settled_the_refinement_builds_on_an_averaged_content_free_warp() -
     hand = HandMotion(3.2, seed=3, still_s=1.0, move_s=0.8)
     settings = SimulationSettings(seconds=3.2, depth_fps=15.0, seed=3, presses=(0.1,), motion=hand)
     rt, clock, _ = _runtime()
-    _feed(rt, clock, list(simulate(Scene.load("cylinder-convex"), CAL, settings)))
+    feed_records(rt, clock, list(simulate(Scene.load("cylinder-convex"), CAL, settings)))
     settled = [e["t_ns"] for e in rt.telemetry.events if e["event"] == "settled"]
     assert settled
     after = [u for u in rt.telemetry.updates if u["t_ns"] > settled[-1]]
@@ -164,7 +150,7 @@ def test_once_settled_the_refinement_builds_on_an_averaged_content_free_warp() -
 
 def test_faults_keep_the_frame_mark_it_and_clear(still_records: list[object]) -> None:
     rt, clock, display = _runtime()
-    _feed(rt, clock, still_records)
+    feed_records(rt, clock, still_records)
     good = display.last.copy()  # type: ignore[union-attr]
     feed(rt, SourceFault("imu", "IMU read failed"))
     feed(rt, SourceFault("depth", "the OAK-D stopped sending depth"))
@@ -184,7 +170,7 @@ def test_faults_keep_the_frame_mark_it_and_clear(still_records: list[object]) ->
 
 def test_a_depth_dropout_is_a_fault_not_a_crash(still_records: list[object]) -> None:
     rt, clock, _display = _runtime()
-    _feed(rt, clock, still_records)
+    feed_records(rt, clock, still_records)
     frame = next(r for r in still_records if isinstance(r, DepthFrame))
     clock.advance_to(clock.now_ns() + 300 * MS)
     rt.on_depth(replace(frame, depth_mm=np.zeros_like(frame.depth_mm), receive_ns=clock.now_ns()))
@@ -265,7 +251,7 @@ def test_boot_shows_the_last_good_warp(still_records: list[object], tmp_path: Pa
     display = MemoryDisplay(CAL.projector.width, CAL.projector.height)
     rt = Runtime(CAL, display, clock, [builtin_item()], state_dir=tmp_path)
     rt.boot()
-    _feed(rt, clock, still_records)
+    feed_records(rt, clock, still_records)
     assert (tmp_path / "last-warp.npz").exists()
     kinds: list[str] = []
     again = Runtime(
