@@ -7,8 +7,11 @@ Written only by ``tools/make_app_goldens.py``.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
+
+from adaproj_edge.session.reader import Scan, iter_records
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
 SESSIONS = FIXTURES / "sessions"
@@ -93,3 +96,12 @@ def differences(got: dict[str, Any], want: dict[str, Any]) -> list[str]:
         if max(abs(a - b) for a, b in zip(g["mean_bgr"], w["mean_bgr"], strict=True)) > MEAN_TOL:
             out.append(f"frames[{i}].mean_bgr: {g['mean_bgr']} != {w['mean_bgr']}")
     return out
+
+
+def push_meta(path: Path) -> dict[str, Any]:
+    """What a push session's metadata says was pushed (``push``: name, bytes, time...)."""
+    scan = Scan()
+    for _ in iter_records(path, topics=set(), scan=scan):
+        pass
+    meta: dict[str, Any] = json.loads(scan.metadata["session"]["push"])
+    return meta

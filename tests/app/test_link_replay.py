@@ -17,17 +17,9 @@ from adaproj_edge.cli import main
 from adaproj_edge.session.reader import Scan, iter_records, read_calibration
 from adaproj_edge.session.records import SerialTraffic
 from adaproj_edge.session.writer import SessionWriter
-from tests.app.golden import PUSH_SESSION
+from tests.app.golden import PUSH_SESSION, push_meta
 
 OPTIONS = ReplayOptions(score=False)
-
-
-def _push_meta() -> dict[str, Any]:
-    scan = Scan()
-    for _ in iter_records(PUSH_SESSION, topics=set(), scan=scan):
-        pass
-    meta: dict[str, Any] = json.loads(scan.metadata["session"]["push"])
-    return meta
 
 
 def _mean(frames: list[dict[str, Any]]) -> np.ndarray:
@@ -47,14 +39,14 @@ def test_the_fixture_is_small_and_holds_a_push() -> None:
         for r in iter_records(PUSH_SESSION)
         if isinstance(r, SerialTraffic) and r.direction == "rx"
     ]
-    assert len(rx) >= 4 and sum(len(r.data) for r in rx) > _push_meta()["bytes"]
+    assert len(rx) >= 4 and sum(len(r.data) for r in rx) > push_meta(PUSH_SESSION)["bytes"]
 
 
 def test_a_recorded_push_switches_the_content_at_the_push(
     pushed: tuple[dict[str, Any], Path],
 ) -> None:
     s, _ = pushed
-    push = _push_meta()
+    push = push_meta(PUSH_SESSION)
     content = [e for e in s["events"] if e["event"] == "content"]
     assert len(content) == 1
     assert content[0]["item"] == push["name"] and content[0]["source"] == "link"
@@ -79,7 +71,7 @@ def test_the_pushed_file_lands_in_the_store_byte_exact(
     pushed: tuple[dict[str, Any], Path],
 ) -> None:
     _, out = pushed
-    push = _push_meta()
+    push = push_meta(PUSH_SESSION)
     data = (out / "store" / push["name"]).read_bytes()
     assert len(data) == push["bytes"]
     assert hashlib.sha256(data).hexdigest() == push["sha256"]
@@ -124,9 +116,9 @@ def test_corrupted_serial_bytes_are_logged_and_projection_goes_on(
     assert link["tx_mismatches"] >= 1  # the replies differ from the recorded ones
     # the push did not complete: no content switch, the poster stays, the device projects
     assert not [e for e in s["events"] if e["event"] == "content"]
-    assert not (tmp_path / "out" / "store" / _push_meta()["name"]).exists()
+    assert not (tmp_path / "out" / "store" / push_meta(PUSH_SESSION)["name"]).exists()
     assert s["states"][-1][1] == "projecting"
-    assert s["frames"][-1]["t_s"] > _push_meta()["t_s"] + 1.0
+    assert s["frames"][-1]["t_s"] > push_meta(PUSH_SESSION)["t_s"] + 1.0
 
 
 def test_the_replay_command_reports_the_link(
@@ -138,4 +130,4 @@ def test_the_replay_command_reports_the_link(
     assert "0 replies differ" in out
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["link"]["content_activations"] == 1
-    assert (tmp_path / "store" / _push_meta()["name"]).exists()
+    assert (tmp_path / "store" / push_meta(PUSH_SESSION)["name"]).exists()

@@ -34,10 +34,9 @@ from adaproj_edge.hal.display import MemoryDisplay
 from adaproj_edge.link.device import Content, Settings
 from adaproj_edge.render.frame import render_frame
 from adaproj_edge.session.hand import HandMotion
-from adaproj_edge.session.reader import Scan, iter_records
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate
-from tests.app.golden import GOLDEN, PUSH_CLIP_SESSION, differences, golden_view
+from tests.app.golden import GOLDEN, PUSH_CLIP_SESSION, differences, golden_view, push_meta
 from tests.app.records import feed_records
 from tests.content.clips import subject_frame, write_clip
 from tests.distortion import in_mask, measure
@@ -293,14 +292,6 @@ def replayed() -> dict[str, Any]:
     return replay_session(PUSH_CLIP_SESSION, None, ReplayOptions(score=False))
 
 
-def _push() -> dict[str, Any]:
-    scan = Scan()
-    for _ in iter_records(PUSH_CLIP_SESSION, topics=set(), scan=scan):
-        pass
-    meta: dict[str, Any] = json.loads(scan.metadata["session"]["push"])
-    return meta
-
-
 def test_the_push_clip_session_replays_to_its_goldens() -> None:
     assert PUSH_CLIP_SESSION.stat().st_size < 2_000_000
     want = json.loads(GOLDEN.read_text())["push-clip"]
@@ -309,7 +300,7 @@ def test_the_push_clip_session_replays_to_its_goldens() -> None:
 
 def test_the_pushed_clip_plays_at_its_rate_pauses_and_resumes() -> None:
     s = replayed()
-    push = _push()
+    push = push_meta(PUSH_CLIP_SESSION)
     content = [e for e in s["events"] if e["event"] == "content"]
     assert [e["item"] for e in content] == [push["name"]]
     start = content[0]["t_s"]
