@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
@@ -95,31 +96,52 @@ def boundary_loops(edges: IntArray) -> list[IntArray] | None:
     return loops
 
 
-def linf_clearance(c: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
-    """L-infinity distance from points ``c`` (..., 2) to the segments p0-p1 (E, 2),
-    minimised over the segments: (...)."""
-    out: FloatArray = linf_distances(c, p0, p1).min(axis=1).reshape(c.shape[:-1])
-    return out
+class Segments:
+    """Segments p0-p1 (E, 2) held as the per-edge arrays the L-infinity distance needs
+    (the searches evaluate it for thousands of point-segment pairs per placement)."""
 
+    def __init__(self, p0: FloatArray, p1: FloatArray) -> None:
+        self.p0, self.p1 = p0, p1
+        self.x0 = np.ascontiguousarray(p0[:, 0])
+        self.y0 = np.ascontiguousarray(p0[:, 1])
+        self.dx = np.ascontiguousarray(p1[:, 0] - p0[:, 0])
+        self.dy = np.ascontiguousarray(p1[:, 1] - p0[:, 1])
+        # where |a_x + t d_x| = |a_y + t d_y| (two lines); a zero denominator gives
+        # t = 0 (num / inf), an end already among the candidates
+        self.den = [self._safe(self.dx - self.dy), self._safe(self.dx + self.dy)]
 
-def linf_distances(c: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
-    """L-infinity distance (N, E) from each of the points ``c`` (..., 2) (N of them) to
-    each of the segments p0-p1 (E, 2)."""
-    a = p0[None, :, :] - c.reshape(-1, 1, 2)  # (N, E, 2): segment start relative to c
-    d = (p1 - p0)[None, :, :]
-    # f(t) = max(|a_x + t d_x|, |a_y + t d_y|) is convex and piecewise linear in t: its
-    # minimum over [0, 1] is at an end or where |a_x + t d_x| = |a_y + t d_y|.
-    ax, ay, dx, dy = a[..., 0], a[..., 1], d[..., 0], d[..., 1]
-    best = np.minimum(
-        np.maximum(np.abs(ax), np.abs(ay)), np.maximum(np.abs(ax + dx), np.abs(ay + dy))
-    )
-    for num, den in ((ay - ax, dx - dy), (-(ax + ay), dx + dy)):
-        ok = np.abs(den) > 1e-300
-        t = np.clip(num / np.where(ok, den, 1.0), 0.0, 1.0)
-        f = np.maximum(np.abs(ax + t * dx), np.abs(ay + t * dy))
-        best = np.minimum(best, np.where(ok, f, np.inf))
-    out: FloatArray = best
-    return out
+    @staticmethod
+    def _safe(den: FloatArray) -> FloatArray:
+        out: FloatArray = np.where(np.abs(den) > 1e-300, den, np.inf)
+        return out
+
+    def subset(self, keep: NDArray[np.bool_]) -> Segments:
+        """The segments where ``keep`` (E,) holds."""
+        return Segments(self.p0[keep], self.p1[keep])
+
+    def distances(self, c: FloatArray) -> FloatArray:
+        """L-infinity distance (N, E) from each of the points ``c`` (..., 2) (N of them)
+        to each segment."""
+        c = c.reshape(-1, 2)
+        ax = self.x0[None, :] - c[:, 0:1]  # (N, E): segment start relative to c
+        ay = self.y0[None, :] - c[:, 1:2]
+        dx, dy = self.dx, self.dy
+        # f(t) = max(|a_x + t d_x|, |a_y + t d_y|) is convex and piecewise linear in t:
+        # its minimum over [0, 1] is at an end or where |a_x + t d_x| = |a_y + t d_y|.
+        best = np.maximum(np.abs(ax), np.abs(ay))
+        np.minimum(best, np.maximum(np.abs(ax + dx), np.abs(ay + dy)), out=best)
+        for num, den in ((ay - ax, self.den[0]), (-(ax + ay), self.den[1])):
+            t = num / den
+            np.clip(t, 0.0, 1.0, out=t)
+            fx = np.abs(ax + t * dx)
+            np.maximum(fx, np.abs(ay + t * dy), out=fx)
+            np.minimum(best, fx, out=best)
+        return best
+
+    def clearance(self, c: FloatArray) -> FloatArray:
+        """L-infinity distance from points ``c`` (..., 2) to the nearest segment: (...)."""
+        out: FloatArray = self.distances(c).min(axis=1).reshape(c.shape[:-1])
+        return out
 
 
 def _raster_start(
@@ -184,6 +206,7 @@ def inscribed_rectangle(
     q = v * np.array([1.0, aspect])  # the wanted rectangle becomes a square
     edges = boundary_edges(tris) if boundary is None else boundary
     p0, p1 = q[edges[:, 0]], q[edges[:, 1]]
+    segs = Segments(p0, p1)
     extent = float(np.max(np.ptp(q, axis=0)))
     tol = TOLERANCE * extent
     sides = side_directions(p1 - p0)
@@ -193,15 +216,15 @@ def inscribed_rectangle(
     if start is not None:
         c = np.asarray(start, dtype=np.float64) * np.array([1.0, aspect])
         step = 0.002 * extent  # a warm start: the rectangle moves little
-        r = float(linf_clearance(c, p0, p1))
+        r = float(segs.clearance(c))
         if not _inside(c, q, tris):
             r = -1.0
     if r <= 0:
         c, step = _raster_start(q, tris, resolution, edges)
-        r = float(linf_clearance(c, p0, p1))
-    c, r = _climb(c, r, step, tol, p0, p1, pattern)
+        r = float(segs.clearance(c))
+    c, r = _climb(c, r, step, tol, segs, pattern)
     if near > 0:
-        cc, rc = _centre(c, (1.0 - near) * r, _centroid(q, tris), tol, p0, p1, pattern)
+        cc, rc = _centre(c, (1.0 - near) * r, _centroid(q, tris), tol, segs, pattern)
         if _inside(cc, q, tris):  # (the clearance alone does not tell in from out)
             c, r = cc, rc
     return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
@@ -212,8 +235,7 @@ def _climb(
     r: float,
     step: float,
     tol: float,
-    p0: FloatArray,
-    p1: FloatArray,
+    segs: Segments,
     pattern: FloatArray,
 ) -> tuple[FloatArray, float]:
     """Climb the clearance from centre ``c`` (clearance ``r``), first over the boundary
@@ -221,14 +243,12 @@ def _climb(
     when the centre leaves that reach or a far edge ends up nearer, the search is redone
     over all of them."""
     reach = 4.0 * step
-    near = linf_distances(c[None, :], p0, p1)[0] <= r + 2.0 * reach
+    near = segs.distances(c[None, :])[0] <= r + 2.0 * reach
     if not near.all():
-        found = _search(c, r, step, tol, p0[near], p1[near], reach, pattern)
-        if found is not None and float(linf_clearance(found[0], p0, p1)) >= found[1] * (
-            1.0 - 1e-12
-        ):
+        found = _search(c, r, step, tol, segs.subset(near), reach, pattern)
+        if found is not None and float(segs.clearance(found[0])) >= found[1] * (1.0 - 1e-12):
             return found
-    found = _search(c, r, step, tol, p0, p1, np.inf, pattern)
+    found = _search(c, r, step, tol, segs, np.inf, pattern)
     assert found is not None
     return found
 
@@ -238,8 +258,7 @@ def _search(
     r: float,
     step: float,
     tol: float,
-    p0: FloatArray,
-    p1: FloatArray,
+    segs: Segments,
     reach: float,
     pattern: FloatArray,
 ) -> tuple[FloatArray, float] | None:
@@ -250,7 +269,7 @@ def _search(
     start = c
     while step > tol:
         trial = (c + step * pattern).reshape(-1, 2)
-        rt = linf_clearance(trial, p0, p1)
+        rt = segs.clearance(trial)
         k = int(np.argmax(rt))
         if rt[k] > r:
             c, r = trial[k], float(rt[k])
@@ -302,20 +321,19 @@ def _centre(
     least: float,
     goal: FloatArray,
     tol: float,
-    p0: FloatArray,
-    p1: FloatArray,
+    segs: Segments,
     pattern: FloatArray,
 ) -> tuple[FloatArray, float]:
     """From centre ``c``, the centre nearest ``goal`` (2,) whose clearance is still at
     least ``least``: a pattern search (straight toward the goal, and the climb's steps),
     moving while it gets nearer; returns it and its clearance."""
-    r = float(linf_clearance(c, p0, p1))
+    r = float(segs.clearance(c))
     gap = float(np.linalg.norm(goal - c))
     step = gap
     while step > tol and gap > 0:
         toward = c + np.minimum(_SCALES * step / gap, 1.0)[:, None] * (goal - c)
         trial = np.concatenate([toward, (c + step * pattern).reshape(-1, 2)])
-        rt = linf_clearance(trial, p0, p1)
+        rt = segs.clearance(trial)
         gaps = np.where(rt >= least, np.linalg.norm(trial - goal, axis=1), np.inf)
         k = int(np.argmin(gaps))
         if gaps[k] < gap:

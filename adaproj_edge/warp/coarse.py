@@ -72,5 +72,7 @@ def upsample_field(
         values = values[idx[0], idx[1]]
     Wr = linear_weights(rows, shape[0])
     Wc = linear_weights(cols, shape[1])
-    out: FloatArray = np.einsum("ir,rck,jc->ijk", Wr, values, Wc)
+    # rows then columns (one three-operand einsum sums in the worst order: 10x slower)
+    along_rows = np.einsum("ir,rck->ick", Wr, values)
+    out: FloatArray = np.einsum("ick,jc->ijk", along_rows, Wc)
     return out

@@ -111,6 +111,10 @@ class ContentFreeWarp:
         The content's placement on ``v_conformal`` (the guard's yardstick).
     mesh : MeshGeometry
         The full grid's mesh (what a coarse refinement is guarded on).
+    refinement_meshes : dict
+        The coarse meshes refinements of this warp ran on, by grid: made once, from the
+        surface of the first refinement (later ones - the device's, of surfaces within
+        its pose cache's tolerance of this one - reuse it, as they reuse this warp).
     """
 
     warp: Warp
@@ -121,6 +125,9 @@ class ContentFreeWarp:
     verts: IntArray
     conformal_placement: Placement
     mesh: MeshGeometry
+    refinement_meshes: dict[str, MeshGeometry] = field(
+        default_factory=dict, repr=False, compare=False
+    )
 
     def matches(self, depth: FloatArray, max_rel: float, min_overlap: float) -> bool:
         """Whether the lattice ``depth`` is (nearly) the surface this warp was made for
@@ -289,8 +296,11 @@ class WarpPlanner:
         if held is not None and frame_dt is not None:  # the content stands still: so
             return self.smoother.smooth(held, start, frame_dt)  # does the warp
         rows, cols, grid = self._refinement_grid(start)
-        coarse_uv = start.warp.grid_uv[np.ix_(rows, cols)]
-        mesh = MeshGeometry.build(surface, grid, self.cache, coarse_uv)
+        mesh = start.refinement_meshes.get(str(grid))
+        if mesh is None:
+            coarse_uv = start.warp.grid_uv[np.ix_(rows, cols)]
+            mesh = MeshGeometry.build(surface, grid, self.cache, coarse_uv)
+            start.refinement_meshes[str(grid)] = mesh
         depth = _surface_depth(surface)
         if frame_dt is None:
             return self._refine(mesh, depth, content_map, settings, start, on_step)

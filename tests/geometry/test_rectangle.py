@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.rectangle import (
     NEAR,
+    Segments,
     boundary_edges,
     inscribed_rectangle,
-    linf_clearance,
     side_directions,
 )
 from adaproj_edge.geometry.triangles import grid_triangles
@@ -28,10 +28,15 @@ def grid_mesh(cols: int, rows: int, w: float, h: float) -> tuple[np.ndarray, np.
 def test_linf_clearance_is_the_sampled_minimum(seed: int) -> None:
     rng = np.random.default_rng(seed)
     c, p0, p1 = rng.normal(size=(4, 2)), rng.normal(size=(6, 2)), rng.normal(size=(6, 2))
+    p1[0] = p0[0]  # a point
+    p1[1] = p0[1] + rng.normal() * np.array([1.0, 1.0])  # along a diagonal: |dx| = |dy|
+    p1[2] = p0[2] + rng.normal() * np.array([1.0, -1.0])
     t = np.linspace(0, 1, 4001)[None, None, :, None]
     pts = p0[None, :, None, :] + t * (p1 - p0)[None, :, None, :]
     brute = np.abs(pts - c[:, None, None, :]).max(-1).min(-1).min(-1)
-    np.testing.assert_allclose(linf_clearance(c, p0, p1), brute, atol=2e-3)
+    segments = Segments(p0, p1)
+    np.testing.assert_allclose(segments.clearance(c), brute, atol=2e-3)
+    np.testing.assert_allclose(segments.distances(c).min(axis=1), brute, atol=2e-3)
 
 
 def test_rectangle_fills_a_rectangle_of_its_aspect() -> None:
