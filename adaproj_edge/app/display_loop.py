@@ -180,6 +180,7 @@ class DisplayLoop:
         self._out = np.zeros(shape, np.uint8)
         self._marks: list[str] = []
         self._shown: Shown | None = None
+        self._pixels_memo: tuple[Warp, float, FloatArray] | None = None
         self._glide = np.eye(3)  # the glide's homography when published
         self._glide_ns = 0
         self._glide_tau_s = settings.glide_s  # its time constant
@@ -268,9 +269,8 @@ class DisplayLoop:
         ):
             return np.eye(3)
         margin = s.stabiliser.margin
-        pts = content_points(new.warp.content_size)
-        u_old = frame_pixels(inset_warp(old.warp, margin), pts)
-        u_new = frame_pixels(inset_warp(new.warp, margin), pts)
+        u_old = self._content_pixels(old.warp, margin)
+        u_new = self._content_pixels(new.warp, margin)
         with self._frame_lock:
             G_old = self._glide_at(t_ns)
         u_old = map_points(np.asarray(np.linalg.inv(G_old), dtype=np.float64), u_old)
@@ -289,6 +289,17 @@ class DisplayLoop:
         out: FloatArray = np.asarray(np.linalg.inv(A), dtype=np.float64)
         out /= out[2, 2]
         return out
+
+    def _content_pixels(self, warp: Warp, margin: float) -> FloatArray:
+        """Where ``warp`` (inset by ``margin``) shows the content points
+        (:func:`~adaproj_edge.render.content_points.frame_pixels`); the last warp's are
+        kept, so a glide finds the frame shown now's without inverting its mesh again."""
+        memo = self._pixels_memo
+        if memo is not None and memo[0] is warp and memo[1] == margin:
+            return memo[2]
+        uv = frame_pixels(inset_warp(warp, margin), content_points(warp.content_size))
+        self._pixels_memo = (warp, margin, uv)
+        return uv
 
     # ------------------------------------------------------------------ refreshes
     def prepare(self, vsync_ns: int) -> Refresh:

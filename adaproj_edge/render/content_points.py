@@ -12,6 +12,7 @@ from adaproj_edge.warp.warpmap import Warp
 
 GRID = 5
 PAIR = 0.2  # the vertical pair: the centre +- this share of the content's height
+BOX_SLACK = 1e-6  # content px: a point on a triangle's edge is in its box
 
 
 def content_points(size: tuple[int, int]) -> FloatArray:
@@ -34,18 +35,31 @@ def frame_pixels(warp: Warp, xy: FloatArray) -> FloatArray:
     tris = grid_triangles(rows - 1, cols - 1)
     q = warp.image_xy.reshape(-1, 2)[tris]  # (T, 3, 2) content corners
     g = warp.grid_uv.reshape(-1, 2)[tris]
-    a, b, c = q[:, 0], q[:, 1], q[:, 2]
-    v0, v1 = b - a, c - a
-    det = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]  # (T,)
-    d = xy[None, :, :] - a[:, None, :]  # (T, N, 2)
+    out: FloatArray = np.full((len(xy), 2), np.nan)
+    # the pairs whose triangle's box holds the point (a NaN corner holds none), in
+    # triangle order; then barycentric coordinates for those pairs alone
+    c0, c1, c2 = q[:, 0], q[:, 1], q[:, 2]  # (three corners: not a slow reduce over 3)
+    lo = np.minimum(np.minimum(c0, c1), c2) - BOX_SLACK  # (T, 2); NaN propagates
+    hi = np.maximum(np.maximum(c0, c1), c2) + BOX_SLACK
+    near = (
+        (xy[None, :, 0] >= lo[:, None, 0])
+        & (xy[None, :, 0] <= hi[:, None, 0])
+        & (xy[None, :, 1] >= lo[:, None, 1])
+        & (xy[None, :, 1] <= hi[:, None, 1])
+    )
+    ti, ni = np.nonzero(near)
+    a = c0[ti]
+    v0, v1 = c1[ti] - a, c2[ti] - a
+    det = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
+    d = xy[ni] - a
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = (d[..., 0] * v1[:, None, 1] - d[..., 1] * v1[:, None, 0]) / det[:, None]
-        t = (v0[:, None, 0] * d[..., 1] - v0[:, None, 1] * d[..., 0]) / det[:, None]
+        s = (d[:, 0] * v1[:, 1] - d[:, 1] * v1[:, 0]) / det
+        t = (v0[:, 0] * d[:, 1] - v0[:, 1] * d[:, 0]) / det
     inside = (s >= -1e-9) & (t >= -1e-9) & (s + t <= 1 + 1e-9) & np.isfinite(s + t)
-    k = np.argmax(inside, axis=0)  # the first triangle holding each point
-    n = np.arange(len(xy))
-    gk = g[k]  # (N, 3, 2)
-    sk, tk = s[k, n][:, None], t[k, n][:, None]
-    out: FloatArray = gk[:, 0] + sk * (gk[:, 1] - gk[:, 0]) + tk * (gk[:, 2] - gk[:, 0])
-    out[~inside[k, n]] = np.nan
+    # the first triangle holding each point
+    points, first = np.unique(ni[inside], return_index=True)
+    k = np.flatnonzero(inside)[first]
+    gk = g[ti[k]]  # (M, 3, 2)
+    sk, tk = s[k, None], t[k, None]
+    out[points] = gk[:, 0] + sk * (gk[:, 1] - gk[:, 0]) + tk * (gk[:, 2] - gk[:, 0])
     return out
