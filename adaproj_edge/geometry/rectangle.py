@@ -145,9 +145,15 @@ class Segments:
 
 
 def _raster_start(
-    v: FloatArray, tris: IntArray, resolution: int, boundary: IntArray | None = None
+    v: FloatArray,
+    tris: IntArray,
+    resolution: int,
+    boundary: IntArray | None = None,
+    loops: list[IntArray] | None = None,
 ) -> tuple[FloatArray, float]:
-    """Centre (2,) of the largest square in a raster of the region, and the cell size."""
+    """Centre (2,) of the largest square in a raster of the region, and the cell size
+    (``loops``: :func:`boundary_loops` of ``boundary`` when known, [] when they do not
+    chain simply)."""
     lo = v.min(axis=0)
     hi = v.max(axis=0)
     extent = float(np.max(hi - lo))
@@ -158,8 +164,9 @@ def _raster_start(
     shape = (int(np.ceil((hi[1] - lo[1]) / cell)) + 4, int(np.ceil((hi[0] - lo[0]) / cell)) + 4)
     mask = np.zeros(shape, dtype=np.uint8)
     q = np.rint((v - origin) / cell * (1 << _SHIFT)).astype(np.int32)
-    loops = None if boundary is None else boundary_loops(boundary)
-    if loops is not None:  # the region's outline (holes included: filled even-odd)
+    if loops is None:
+        loops = (None if boundary is None else boundary_loops(boundary)) or []
+    if loops:  # the region's outline (holes included: filled even-odd)
         cv2.fillPoly(mask, [q[loop] for loop in loops], 1, lineType=cv2.LINE_8, shift=_SHIFT)
     else:
         cv2.fillPoly(mask, list(q[tris]), 1, lineType=cv2.LINE_8, shift=_SHIFT)
@@ -178,6 +185,7 @@ def inscribed_rectangle(
     boundary: IntArray | None = None,
     start: FloatArray | None = None,
     near: float = NEAR,
+    loops: list[IntArray] | None = None,
 ) -> Rect:
     """Largest rectangle of ``aspect`` (width / height) inside the union of triangles.
 
@@ -200,6 +208,9 @@ def inscribed_rectangle(
     near : float
         Of the rectangles at most this much narrower than the largest, the one centred
         nearest the region's area centroid is returned (0: the largest, wherever it is).
+    loops : list of int arrays, optional
+        :func:`boundary_loops` of ``boundary`` ([] when they do not chain simply), when
+        the caller keeps them (they depend on the mesh's topology alone).
     """
     if tris.size == 0:
         raise WarpError("no surface triangles to place the content on")
@@ -220,7 +231,7 @@ def inscribed_rectangle(
         if not _inside(c, q, tris):
             r = -1.0
     if r <= 0:
-        c, step = _raster_start(q, tris, resolution, edges)
+        c, step = _raster_start(q, tris, resolution, edges, loops)
         r = float(segs.clearance(c))
     c, r = _climb(c, r, step, tol, segs, pattern)
     if near > 0:

@@ -120,6 +120,8 @@ class MeshGeometry:
         (metres), oriented as the content is (y down).
     curved : (T,) bool, the triangles a curved crease runs through (their unfolding is
         only approximate: :mod:`~adaproj_edge.warp.adaptive` refines there).
+    memo : what callers derive from this geometry alone, made once
+        (:meth:`remember`).
     """
 
     grid: Grid
@@ -130,6 +132,14 @@ class MeshGeometry:
     lengths: FloatArray
     shapes: FloatArray
     curved: NDArray[np.bool_]
+    memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    def remember(self, name: str, make: Callable[[], T]) -> T:
+        """``make()`` once per mesh (quantities of its geometry, not of a solve)."""
+        if name not in self.memo:
+            self.memo[name] = make()
+        out: T = self.memo[name]
+        return out
 
     @property
     def used(self) -> NDArray[np.bool_]:

@@ -11,9 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
-from adaproj_edge.geometry.rectangle import NEAR, inscribed_rectangle
+from adaproj_edge.geometry.rectangle import NEAR, boundary_loops, inscribed_rectangle
 from adaproj_edge.geometry.triangles import cross, triangle_normals
 from adaproj_edge.warp.mesh import MeshGeometry
 
@@ -45,11 +46,33 @@ def upright_angle(mesh: MeshGeometry, v: FloatArray, up: FloatArray) -> float:
     far down lies in the plane) defines the rotation. Returns 0 when the surface is
     level (down has no direction on it).
     """
-    p = mesh.p[mesh.tris]  # (T, 3, 3)
-    q = v[mesh.tris]  # (T, 3, 2)
-    n = triangle_normals(p)
     down = -np.asarray(up, dtype=np.float64)
     down = down / np.linalg.norm(down)
+    key = "down " + " ".join(f"{x:.17g}" for x in down)
+    a, b, area, weight, ok = mesh.remember(key, lambda: _down_on_surface(mesh, down))
+    q = v[mesh.tris]  # (T, 3, 2)
+    d = a[:, None] * (q[:, 1] - q[:, 0]) + b[:, None] * (q[:, 2] - q[:, 0])
+    norm = np.linalg.norm(d, axis=1)
+    good = ok & (norm > 0)
+    if not np.any(good):
+        return 0.0
+    unit = d[good] / norm[good, None]
+    mean = np.sum(unit * weight[good, None], axis=0)
+    if np.linalg.norm(mean) < 1e-12 * max(float(np.sum(area)), 1e-300):
+        return 0.0
+    # rotate mean direction onto +y: angle = atan2(mean) -> pi/2
+    return float(np.pi / 2 - np.arctan2(mean[1], mean[0]))
+
+
+def _down_on_surface(
+    mesh: MeshGeometry, down: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]:
+    """``down`` (3,) projected on each triangle's plane, in the basis of its two edges
+    from corner 0: coefficients a, b (T,), the triangles' surface areas, their weights
+    (area times the projection's length) and where the basis is sound (T,) - the part
+    of :func:`upright_angle` that depends on the mesh alone."""
+    p = mesh.p[mesh.tris]  # (T, 3, 3)
+    n = triangle_normals(p)
     g = down[None, :] - np.sum(n * down, axis=1, keepdims=True) * n
     e1 = p[:, 1] - p[:, 0]
     e2 = p[:, 2] - p[:, 0]
@@ -63,19 +86,9 @@ def upright_angle(mesh: MeshGeometry, v: FloatArray, up: FloatArray) -> float:
     ok = det > 1e-18
     a = np.where(ok, (m22 * r1 - m12 * r2) / np.where(ok, det, 1.0), 0.0)
     b = np.where(ok, (m11 * r2 - m12 * r1) / np.where(ok, det, 1.0), 0.0)
-    d = a[:, None] * (q[:, 1] - q[:, 0]) + b[:, None] * (q[:, 2] - q[:, 0])
     area = 0.5 * np.linalg.norm(cross(e1, e2), axis=1)
     strength = np.linalg.norm(g, axis=1)
-    norm = np.linalg.norm(d, axis=1)
-    good = ok & (norm > 0)
-    if not np.any(good):
-        return 0.0
-    unit = d[good] / norm[good, None]
-    mean = np.sum(unit * (area * strength)[good, None], axis=0)
-    if np.linalg.norm(mean) < 1e-12 * max(float(np.sum(area)), 1e-300):
-        return 0.0
-    # rotate mean direction onto +y: angle = atan2(mean) -> pi/2
-    return float(np.pi / 2 - np.arctan2(mean[1], mean[0]))
+    return a, b, area, area * strength, ok
 
 
 def place(
@@ -103,7 +116,10 @@ def place(
     rot = Placement(angle, 1.0, np.zeros(2))
     vr = rot.apply(v)
     w, h = content_size
-    rect = inscribed_rectangle(vr, mesh.tris, w / h, boundary=mesh.boundary, start=start, near=NEAR)
+    loops = mesh.topology.remember("boundary loops", lambda: boundary_loops(mesh.boundary) or [])
+    rect = inscribed_rectangle(
+        vr, mesh.tris, w / h, boundary=mesh.boundary, start=start, near=NEAR, loops=loops
+    )
     scale = w / rect.width
     # content pixel centres at integers: the rectangle's corner is pixel (-0.5, -0.5)
     offset = np.array([-0.5 - scale * rect.x0, -0.5 - scale * rect.y0])
