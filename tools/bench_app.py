@@ -58,6 +58,7 @@ STAGES = [
     "planes",
     "cache_lookup",
     "content_free",
+    "re_place",
     "content_aware",
     "map",
     "render",
@@ -158,7 +159,9 @@ def main() -> int:
         its = [u["iterations"] for u in r["updates"] if u["kind"] == "content-aware"]
         print(
             f"{label:10s}: motion-to-frame latency median {lat['median']} ms, p95 {lat['p95']} ms "
-            f"(n={lat['n']}); {c['content_free']} content-free, {c['content_aware']} content-aware "
+            f"(n={lat['n']}); {c['content_free']} content-free solves "
+            f"(+{c.get('re_placed', 0)} re-placed for another up), "
+            f"{c['content_aware']} content-aware "
             f"(mean {np.mean(its) if its else 0:.1f} iterations), {c['cache_hits']} cache hits; "
             f"replay {r['wall_s']:.1f} s wall; RSS max {max(r['rss_mb']):.0f} MB"
         )

@@ -172,6 +172,13 @@ def report(name: str, times: Times, period_ms: float, base_fps: float | None) ->
     stages = ", ".join(f"{k} {statistics.median(v):.1f}/{p95(v):.1f}" for k, v in times.items())
     print(f"  stage median/p95 ms: {stages}")
     print(f"  frame median/p95 ms: {statistics.median(totals):.1f}/{p95(list(totals)):.1f}")
+    late_frames = [
+        f"#{i} {totals[i]:.0f} ms ({max(times, key=lambda k: times[k][i])} "
+        f"{max(v[i] for v in times.values()):.0f})"
+        for i in np.flatnonzero(totals > period_ms)
+    ]
+    if late_frames:
+        print(f"  late frames (slowest stage): {', '.join(late_frames)}")
     return fps
 
 

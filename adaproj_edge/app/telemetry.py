@@ -24,6 +24,7 @@ COUNTERS = (
     "cache_hits",
     "cache_misses",
     "cache_rejected",
+    "re_placed",
     "estimates",
     "skipped_frames",
     "frames_shown",

@@ -7,7 +7,11 @@ A pose's entry holds its content-free warp, the pixel weights of its mesh (every
 that pose maps through them) and, once shown, the content-free warp's own maps. Lookups
 key on the IMU orientation, a depth signature and "up" (gravity), and every candidate
 is checked node by node against the current surface, for the same "up" (within
-``up_match_rad``; :mod:`adaproj_edge.warp.posecache`) and for the content's size.
+``up_match_rad``; :mod:`adaproj_edge.warp.posecache`) and for the content's size. An
+entry of the same surface made for another "up", while the device turned at most
+``orientation_bin_rad``, is placed upright again instead of solved anew (its solves
+depend on the surface alone: :meth:`~adaproj_edge.warp.planner.WarpPlanner.with_up`,
+timed as ``re_place``, counted as ``re_placed``).
 
 Every map drawn for the display has the content inset by the stabilisation margin
 (:func:`~adaproj_edge.render.reproject.inset_warp`): the warps themselves (cached,
@@ -52,6 +56,8 @@ class PoseEntry:
         Depth frames averaged into the surface it was made from.
     up : (3,) float array
         The "up" (frame P) its content was placed upright with.
+    orientation : (3,) float array
+        The device's orientation (rotation vector) when it was made.
     maps : RemapMaps or None
         The content-free warp's own display maps, made when first shown.
     """
@@ -60,6 +66,7 @@ class PoseEntry:
     weights: PixelWeights
     frames: int
     up: FloatArray
+    orientation: FloatArray
     maps: RemapMaps | None = None
 
     @property
@@ -157,11 +164,27 @@ class WarpSource:
             "cache_hit" if entry is not None else "cache_lookup", time.perf_counter() - t_lookup
         )
         hit = entry is not None
+        if entry is None and self.caching:
+            # the same surface, the device turned no more than an orientation bin, but
+            # another "up" (gravity's estimate moves with the hand's tremor): placed
+            # upright again, no new solve
+            def near(e: PoseEntry) -> bool:
+                turned = float(np.linalg.norm(e.orientation - orientation))
+                return turned <= s.orientation_bin_rad and e.warp.content_size == content_size
+
+            base = self.poses.nearest(depth, s.cache_match_rel, min_frames=min_frames, accept=near)
+            if base is not None:
+                with self.telemetry.times.timer("re_place"):
+                    cf = self.planner.with_up(base.content_free, up)
+                    entry = PoseEntry(cf, base.weights, base.frames, up, base.orientation)
+                self.poses.put(key, entry)
+                self.telemetry.count("re_placed")
         if entry is None:
             self.telemetry.count("cache_misses")
             with self.telemetry.times.timer("content_free"):
                 cf = self.planner.content_free(surface, content_size, settings)
-                entry = PoseEntry(cf, self.display.pixel_weights(cf.warp), frames, up)
+                weights = self.display.pixel_weights(cf.warp)
+                entry = PoseEntry(cf, weights, frames, up, np.asarray(orientation, np.float64))
             self.poses.put(key, entry)
             self.telemetry.count("content_free")
         else:

@@ -111,6 +111,8 @@ class ContentFreeWarp:
         The content's placement on ``v_conformal`` (the guard's yardstick).
     mesh : MeshGeometry
         The full grid's mesh (what a coarse refinement is guarded on).
+    up : (3,) float array
+        The "up" (frame P) the content was placed upright for.
     refinement_meshes : dict
         The coarse meshes refinements of this warp ran on, by grid: made once, from the
         surface of the first refinement (later ones - the device's, of surfaces within
@@ -125,6 +127,7 @@ class ContentFreeWarp:
     verts: IntArray
     conformal_placement: Placement
     mesh: MeshGeometry
+    up: FloatArray
     refinement_meshes: dict[str, MeshGeometry] = field(
         default_factory=dict, repr=False, compare=False
     )
@@ -265,9 +268,38 @@ class WarpPlanner:
         warp.meta.update(extra)
         depth = _surface_depth(surface)
         return (
-            ContentFreeWarp(warp, depth, v_conf, v, placement, mesh.verts.copy(), p_conf, mesh),
+            ContentFreeWarp(
+                warp,
+                depth,
+                v_conf,
+                v,
+                placement,
+                mesh.verts.copy(),
+                p_conf,
+                mesh,
+                np.asarray(settings.up, dtype=np.float64),
+            ),
             mesh,
         )
+
+    def with_up(
+        self, start: ContentFreeWarp, up: FloatArray | tuple[float, ...]
+    ) -> ContentFreeWarp:
+        """``start`` placed upright for another "up" (frame P): the solves depend on
+        the surface alone, so only the placements (and the warp's content coordinates)
+        are made again - a device turned about its axis in front of the same surface
+        needs no new solve. The refinement meshes are shared."""
+        mesh = start.mesh
+        size = start.warp.content_size
+        up_p = np.asarray(up, dtype=np.float64)
+        p_conf = place(mesh, start.v_conformal, size, up_p)
+        placement = place(mesh, start.v, size, up_p)
+        flat = np.full((start.warp.grid_uv.shape[0] * start.warp.grid_uv.shape[1], 2), np.nan)
+        flat[mesh.verts] = placement.apply(start.v)
+        warp = replace(
+            start.warp, image_xy=flat.reshape(start.warp.image_xy.shape), meta=dict(start.warp.meta)
+        )
+        return replace(start, warp=warp, placement=placement, conformal_placement=p_conf, up=up_p)
 
     def _conformal_start(
         self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings

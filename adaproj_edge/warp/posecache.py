@@ -160,6 +160,26 @@ class PoseCache(Generic[E]):
         self.misses += 1
         return None
 
+    def nearest(
+        self,
+        depth: FloatArray,
+        max_rel: float = 0.01,
+        min_overlap: float = 0.97,
+        min_frames: int = 0,
+        accept: Callable[[E], bool] | None = None,
+    ) -> E | None:
+        """The most recent entry that fits ``depth`` (and ``accept``), whatever its key;
+        neither counted nor moved (what a new entry of the same surface is made from)."""
+        ok = accept or (lambda e: True)
+        for item in reversed(list(self._items.values())):
+            if (
+                item.frames >= min_frames
+                and ok(item)
+                and surfaces_match(depth, item.depth, max_rel, min_overlap)
+            ):
+                return item
+        return None
+
     def put(self, key: Key, item: E) -> None:
         """File ``item`` under ``key`` (the least recently used entry goes beyond
         ``size``; a cache of size 0 keeps nothing)."""

@@ -187,3 +187,19 @@ def test_warm_start_takes_at_most_the_warm_steps_from_the_last_solution() -> Non
     planner.forget()
     cold = planner.refine(s, cmap, settings, cf)
     np.testing.assert_allclose(cold.image_xy, first.image_xy, rtol=0, atol=1e-9)
+
+
+def test_a_content_free_warp_placed_for_another_up_is_the_one_solved_for_it() -> None:
+    s = surface("sphere-concave")
+    planner = WarpPlanner(s.projector, plan=PlanSettings(refine_factor=2), cache=None)
+    level = WarpSettings(mode="content")
+    a = np.deg2rad(8.0)
+    rolled = WarpSettings(mode="content", up=(np.sin(a), -np.cos(a), 0.0))
+    first = planner.content_free(s, CONTENT, level)
+    turned = planner.with_up(first, rolled.up)
+    solved = planner.content_free(s, CONTENT, rolled)
+    assert np.allclose(turned.warp.image_xy, solved.warp.image_xy, atol=1e-9, equal_nan=True)
+    assert turned.placement.angle == pytest.approx(solved.placement.angle, abs=1e-12)
+    assert abs(turned.placement.angle - first.placement.angle) == pytest.approx(a, abs=0.02)
+    assert np.array_equal(turned.up, solved.up)
+    assert turned.refinement_meshes is first.refinement_meshes  # the same surface

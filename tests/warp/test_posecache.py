@@ -60,3 +60,18 @@ def test_entries_from_fewer_averaged_frames_are_passed_over_but_kept() -> None:
     cache.put((1,), single)
     assert cache.get((1,), depth, min_frames=3) is None
     assert len(cache) == 1 and cache.get((1,), depth, min_frames=1) is single
+
+
+def test_nearest_finds_an_entry_of_the_surface_without_counting_or_moving_it() -> None:
+    depth = np.full((21, 21), 1.5)
+    cache: PoseCache[_Entry] = PoseCache(4)
+    near, far = _Entry(depth * 1.001, frames=3), _Entry(depth * 1.3, frames=3)
+    young = _Entry(depth, frames=1)
+    for k, e in enumerate((near, far, young)):
+        cache.put((k,), e)
+    assert cache.nearest(depth, min_frames=2) is near  # the single-frame one passed over
+    assert cache.nearest(depth) is young  # the most recent that fits
+    assert cache.nearest(depth, accept=lambda e: e is not young) is near
+    assert cache.nearest(depth * 2.0) is None
+    assert (cache.hits, cache.misses, len(cache)) == (0, 0, 3)
+    assert cache.get((0,), depth * 1.001) is near  # still filed where it was
