@@ -107,12 +107,13 @@ class ContentFreeWarp:
         The content's placement on ``v``.
     verts : (n,) int array
         The full-grid indices of the mesh's vertices.
-    conformal_placement : Placement
-        The content's placement on ``v_conformal`` (the guard's yardstick).
     mesh : MeshGeometry
         The full grid's mesh (what a coarse refinement is guarded on).
     up : (3,) float array
         The "up" (frame P) the content was placed upright for.
+    conformal_placement : Placement
+        The content's placement on ``v_conformal`` (the guard's yardstick; made when
+        first asked for: a content-free update never needs it).
     refinement_meshes : dict
         The coarse meshes refinements of this warp ran on, by grid: made once, from the
         surface of the first refinement (later ones - the device's, of surfaces within
@@ -125,12 +126,21 @@ class ContentFreeWarp:
     v: FloatArray
     placement: Placement
     verts: IntArray
-    conformal_placement: Placement
     mesh: MeshGeometry
     up: FloatArray
+    known_conformal_placement: Placement | None = field(default=None, repr=False)
     refinement_meshes: dict[str, MeshGeometry] = field(
         default_factory=dict, repr=False, compare=False
     )
+
+    @property
+    def conformal_placement(self) -> Placement:
+        """The content's placement on ``v_conformal`` (made once, when first used)."""
+        if self.known_conformal_placement is None:
+            self.known_conformal_placement = place(
+                self.mesh, self.v_conformal, self.warp.content_size, self.up
+            )
+        return self.known_conformal_placement
 
     def matches(self, depth: FloatArray, max_rel: float, min_overlap: float) -> bool:
         """Whether the lattice ``depth`` is (nearly) the surface this warp was made for
@@ -261,7 +271,8 @@ class WarpPlanner:
         self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
     ) -> tuple[ContentFreeWarp, MeshGeometry]:
         settings = replace(settings, grid=self.grid)
-        mesh, extra, v_conf, p_conf = self._conformal_start(surface, content_size, settings)
+        mesh, extra = self._mesh(surface, settings)
+        v_conf = self.backend.conformal(mesh)
         v, _ = self.backend.content_free(mesh, v_conf, settings.lam)
         placement = place(mesh, v, content_size, settings.up)
         warp = make_warp(mesh, v, placement, surface, content_size, settings, 0, 0.0)
@@ -275,7 +286,6 @@ class WarpPlanner:
                 v,
                 placement,
                 mesh.verts.copy(),
-                p_conf,
                 mesh,
                 np.asarray(settings.up, dtype=np.float64),
             ),
@@ -292,14 +302,15 @@ class WarpPlanner:
         mesh = start.mesh
         size = start.warp.content_size
         up_p = np.asarray(up, dtype=np.float64)
-        p_conf = place(mesh, start.v_conformal, size, up_p)
         placement = place(mesh, start.v, size, up_p)
         flat = np.full((start.warp.grid_uv.shape[0] * start.warp.grid_uv.shape[1], 2), np.nan)
         flat[mesh.verts] = placement.apply(start.v)
         warp = replace(
             start.warp, image_xy=flat.reshape(start.warp.image_xy.shape), meta=dict(start.warp.meta)
         )
-        return replace(start, warp=warp, placement=placement, conformal_placement=p_conf, up=up_p)
+        return replace(
+            start, warp=warp, placement=placement, up=up_p, known_conformal_placement=None
+        )
 
     def _conformal_start(
         self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
