@@ -25,6 +25,8 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.warp.displayed import DisplaySamples
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.orientation import unfolded
 from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
@@ -99,10 +101,21 @@ def triangle_distortion(
 
 
 def subject_distortion(
-    mesh: MeshGeometry, content_xy: FloatArray, content_map: ContentMap
+    mesh: MeshGeometry,
+    content_xy: FloatArray,
+    content_map: ContentMap,
+    display: DisplaySamples | None = None,
 ) -> SubjectDistortion:
     """The distortion of the salient content (C >= T) shown by the mesh triangles with
-    content positions ``content_xy`` (n, 2)."""
+    content positions ``content_xy`` (n, 2): as the display shows it, sampled, given
+    ``display`` (:class:`~adaproj_edge.warp.displayed.DisplaySamples` of ``mesh``);
+    else by the mesh, per triangle weighted by its salient share."""
+    if display is not None:
+        angle, log_size, weight = display.distortion(content_xy, content_map)
+        total = float(weight.sum())
+        if total <= 0:
+            return SubjectDistortion(0.0, 0.0, 0.0)
+        return _summary(weight, angle, log_size, total)
     # the salient share of a triangle: C >= T at its corners and at its centroid
     centroids = content_xy[mesh.tris].mean(axis=1)
     salient = content_map.weights(np.concatenate([content_xy, centroids]))
@@ -114,10 +127,16 @@ def subject_distortion(
         return SubjectDistortion(0.0, 0.0, 0.0)
     keep = weight > 0
     angle, log_size = triangle_distortion(mesh, content_xy, keep)
-    wk = weight[keep]
-    mean_log = float(wk @ log_size / total)
-    spread = float(np.sqrt(wk @ (log_size - mean_log) ** 2 / total))
-    return SubjectDistortion(float(wk @ angle / total), spread, total)
+    return _summary(weight[keep], angle, log_size, total)
+
+
+def _summary(
+    weight: FloatArray, angle: FloatArray, log_size: FloatArray, total: float
+) -> SubjectDistortion:
+    """Weighted mean angle error and spread of the log size."""
+    mean_log = float(weight @ log_size / total)
+    spread = float(np.sqrt(weight @ (log_size - mean_log) ** 2 / total))
+    return SubjectDistortion(float(weight @ angle / total), spread, total)
 
 
 def no_worse(a: SubjectDistortion, b: SubjectDistortion, margin: float = MARGIN) -> bool:
@@ -145,6 +164,7 @@ def guard(
     content_map: ContentMap,
     up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
     margin: float = MARGIN,
+    surface: Surface | None = None,
 ) -> Choice:
     """Keep the content-aware warp, a blend, or the conformal warp: the one with most of
     the content-aware warp that is no worse than the conformal warp on the salient
@@ -157,8 +177,11 @@ def guard(
         The two candidates, each with the placement made for it.
     content_map : ContentMap
     up : "up" in frame P, for placing a blend.
-    margin : how much better than the conformal warp a candidate must look on the mesh
-        (:data:`MARGIN`; more where the mesh is further from what is displayed).
+    margin : how much better than the conformal warp a candidate must look
+        (:data:`MARGIN`).
+    surface : the surface the mesh was built from; given, the candidates are scored as
+        the per-pixel display shows them (:mod:`~adaproj_edge.warp.displayed`), else by
+        the mesh alone.
 
     Returns
     -------
@@ -167,8 +190,9 @@ def guard(
     """
     va, pa = aware
     vc, pc = conformal
-    m_aware = subject_distortion(mesh, pa.apply(va), content_map)
-    m_conf = subject_distortion(mesh, pc.apply(vc), content_map)
+    display = None if surface is None else DisplaySamples.of(mesh, surface)
+    m_aware = subject_distortion(mesh, pa.apply(va), content_map, display)
+    m_conf = subject_distortion(mesh, pc.apply(vc), content_map, display)
     meta: dict[str, Any] = {"aware": m_aware.as_dict(), "conformal": m_conf.as_dict()}
     if m_aware.weight <= 0 or m_conf.weight <= 0:
         meta.update(choice="content-aware", reason="no salient content shows", t=1.0)
@@ -182,7 +206,7 @@ def guard(
         if not unfolded(vt, mesh.tris):
             continue
         pt = place(mesh, vt, content_map.content_size, up, pa)
-        m = subject_distortion(mesh, pt.apply(vt), content_map)
+        m = subject_distortion(mesh, pt.apply(vt), content_map, display)
         if no_worse(m, m_conf, margin):
             meta.update(
                 choice="blend",

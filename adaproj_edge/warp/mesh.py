@@ -120,6 +120,8 @@ class MeshGeometry:
         (metres), oriented as the content is (y down).
     curved : (T,) bool, the triangles a curved crease runs through (their unfolding is
         only approximate: :mod:`~adaproj_edge.warp.adaptive` refines there).
+    memo : what is computed from this mesh alone on first use (the display's factors
+        of :mod:`~adaproj_edge.warp.displayed`).
     """
 
     grid: Grid
@@ -130,6 +132,7 @@ class MeshGeometry:
     lengths: FloatArray
     shapes: FloatArray
     curved: NDArray[np.bool_]
+    memo: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def used(self) -> NDArray[np.bool_]:
