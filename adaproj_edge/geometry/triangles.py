@@ -100,8 +100,9 @@ def rot90_2d(v: FloatArray) -> FloatArray:
     return np.stack([v[..., 1], -v[..., 0]], axis=-1)
 
 
-def grid_cells(positions: FloatArray, n: int) -> tuple[IntArray, FloatArray]:
-    """The interval of increasing ``positions`` that each of 0..n-1 falls in.
+def grid_cells(positions: FloatArray, n: int, step: int = 1) -> tuple[IntArray, FloatArray]:
+    """The interval of increasing ``positions`` that each of 0..n-1 (every ``step``-th)
+    falls in.
 
     Parameters
     ----------
@@ -109,16 +110,18 @@ def grid_cells(positions: FloatArray, n: int) -> tuple[IntArray, FloatArray]:
         Increasing coordinates of grid lines (pixel columns, vertex indices, ...).
     n : int
         The coordinates 0, 1, ..., n - 1 to place.
+    step : int
+        Place only every ``step``-th of them (0, step, 2 step, ...).
 
     Returns
     -------
-    cell : (n,) int array
+    cell : (ceil(n / step),) int array
         Index ``c`` of the interval ``[positions[c], positions[c + 1]]`` (clamped to the
         first and last interval outside the range).
-    fraction : (n,) float array
+    fraction : (ceil(n / step),) float array
         Where in it: ``(x - positions[c]) / (positions[c + 1] - positions[c])``.
     """
-    x = np.arange(n, dtype=np.float64)
+    x = np.arange(0, n, step, dtype=np.float64)
     c = np.clip(np.searchsorted(positions, x, side="right") - 1, 0, positions.size - 2)
     f = (x - positions[c]) / (positions[c + 1] - positions[c])
     return c, f

@@ -64,13 +64,13 @@ class PixelLayout:
     l2: FloatArray
 
     @classmethod
-    def build(cls, grid_uv: FloatArray, projector: Projector) -> PixelLayout:
+    def build(cls, grid_uv: FloatArray, projector: Projector, step: int = 1) -> PixelLayout:
         """The layout of the grid with vertices at ``grid_uv`` (R, C, 2) in the frame of
-        ``projector``."""
+        ``projector`` (of every ``step``-th pixel along x and y: (H/step, W/step))."""
         rows, cols = grid_uv.shape[:2]
         corners = grid_triangles(rows - 1, cols - 1)
-        cx, fx = grid_cells(grid_uv[0, :, 0], projector.width)
-        cy, fy = grid_cells(grid_uv[:, 0, 1], projector.height)
+        cx, fx = grid_cells(grid_uv[0, :, 0], projector.width, step)
+        cy, fy = grid_cells(grid_uv[:, 0, 1], projector.height, step)
         cxx, cyy = np.meshgrid(cx, cy)
         fxx, fyy = np.meshgrid(fx, fy)
         upper = fxx >= fyy  # triangle (a, b, e), else (a, e, d)

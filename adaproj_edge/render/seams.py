@@ -109,8 +109,10 @@ def surface_weights(
     surface: Surface,
     tri: IntArray,
     barycentric: FloatArray,
+    points: FloatArray | None = None,
 ) -> tuple[NDArray[np.int32], FloatArray]:
-    """Seam-blended surface weights of every pixel.
+    """Seam-blended surface weights of every pixel (or of the pixels ``tri`` describes,
+    given their ``points``).
 
     Parameters
     ----------
@@ -121,6 +123,8 @@ def surface_weights(
         Dense or lattice surface; each pixel's own point is taken from it.
     tri : (H, W) each pixel's triangle (``grid_triangles`` order).
     barycentric : (3, H, W) each pixel's pixel-space barycentric weights in it.
+    points : (H, W, 3), optional
+        Each pixel's own surface point; default: the dense surface (every pixel).
 
     Returns
     -------
@@ -134,7 +138,7 @@ def surface_weights(
     P = (projector.rays(grid_uv) * depth[..., None]).reshape(-1, 3)
     unfolding = unfold_creases(surface, grid_uv.reshape(-1, 2)[corners], corners, P)
     bary, offset = _planes(P, unfolding)
-    X = surface.dense().points.astype(np.float64)
+    X = (surface.dense().points if points is None else points).astype(np.float64)
     X_own = unfolding.unfold_points(tri, X)
     normals = triangle_normals(unfolding.points)
     own = _project(tri, X_own, bary, offset)  # (H, W, 3)

@@ -140,6 +140,7 @@ def content_aware(
     settings: WarpSettings,
     backend: Backend = FAST,
     on_step: Callable[[], None] | None = None,
+    surface: Surface | None = None,
 ) -> tuple[FloatArray, Placement, int, float, dict[str, Any]] | None:
     """Our ``content`` mode from the conformal positions ``v_conformal`` (n, 2) placed
     by ``placement``; None when nothing or everything salient shows (then the
@@ -149,7 +150,8 @@ def content_aware(
     salient region's size on the surface (its fixed point does not depend on the start;
     on a developable surface that start is the answer), and
     :func:`~adaproj_edge.warp.guard.guard` keeps its result only where it is no worse
-    than the conformal warp on the subject.
+    than the conformal warp on the subject (as displayed, given the ``surface`` the mesh
+    was built from).
 
     Returns
     -------
@@ -167,7 +169,14 @@ def content_aware(
     v, aware_placement, iterations, fraction = refine(
         mesh, v_conformal * scale, start, content_map, settings, backend, on_step
     )
-    choice = guard(mesh, (v, aware_placement), (v_conformal, placement), content_map, settings.up)
+    choice = guard(
+        mesh,
+        (v, aware_placement),
+        (v_conformal, placement),
+        content_map,
+        settings.up,
+        surface=surface,
+    )
     return choice.v, choice.placement, iterations, fraction, {"guard": choice.meta}
 
 

@@ -120,8 +120,9 @@ class MeshGeometry:
         (metres), oriented as the content is (y down).
     curved : (T,) bool, the triangles a curved crease runs through (their unfolding is
         only approximate: :mod:`~adaproj_edge.warp.adaptive` refines there).
-    memo : what callers derive from this geometry alone, made once
-        (:meth:`remember`).
+    memo : what callers derive from this geometry alone, made once (:meth:`remember`;
+        the upright angle's factors, the display's samples of
+        :mod:`~adaproj_edge.warp.displayed`).
     """
 
     grid: Grid

@@ -346,9 +346,11 @@ class WarpPlanner:
             start.refinement_meshes[str(grid)] = mesh
         depth = _surface_depth(surface)
         if frame_dt is None:
-            return self._refine(mesh, depth, content_map, settings, start, on_step)
+            return self._refine(mesh, depth, content_map, settings, start, on_step, surface=surface)
         graded = GradedContentMap.of(content_map, self.plan_settings.temporal.band)
-        warp = self._refine(mesh, depth, graded, settings, start, on_step, frame_dt)
+        warp = self._refine(
+            mesh, depth, graded, settings, start, on_step, frame_dt, surface=surface
+        )
         self.smoother.refined(warp, content_map)
         return self.smoother.smooth(warp, start, frame_dt)
 
@@ -361,9 +363,11 @@ class WarpPlanner:
         start: ContentFreeWarp,
         on_step: StepHook | None = None,
         frame_dt: float | None = None,
+        surface: Surface | None = None,
     ) -> Warp:
         """:meth:`refine` (before any smoothing) on the refinement grid's ``mesh`` of
-        the surface of lattice ``depth``."""
+        the surface of lattice ``depth``; the guard scores as displayed on ``surface``
+        (the one the meshes were built from) when it is given."""
         fine = start.warp
         factor = self.plan_settings.refine_factor
         c_rows, c_cols, grid = self._refinement_grid(start)
@@ -391,7 +395,14 @@ class WarpPlanner:
             # our alternation from the conformal warp, guarded (engine.content_aware)
             p_conf = start.conformal_placement
             ours = content_aware(
-                mesh, v_conf, p_conf, content_map, coarse_settings, self.backend, on_step
+                mesh,
+                v_conf,
+                p_conf,
+                content_map,
+                coarse_settings,
+                self.backend,
+                on_step,
+                surface=surface,
             )
             if ours is None:  # nothing or everything salient: E' is the answer
                 its, frac = 0, float(content_map.weights(placement.apply(v)).mean())
@@ -409,6 +420,7 @@ class WarpPlanner:
                     (v_conf, start.conformal_placement),
                     content_map,
                     settings.up,
+                    surface=surface,
                 )
                 v, placement, extra["guard"] = choice.v, choice.placement, choice.meta
         if self.plan_settings.warm_start:
@@ -477,7 +489,9 @@ class WarpPlanner:
             # not all content is salient (what content_free + refine give, sooner)
             full = replace(settings, grid=self.grid)
             mesh, extra, v_conf, p_conf = self._conformal_start(surface, content_size, full)
-            ours = content_aware(mesh, v_conf, p_conf, content_map, full, self.backend)
+            ours = content_aware(
+                mesh, v_conf, p_conf, content_map, full, self.backend, surface=surface
+            )
             if ours is not None:
                 v, placement, its, frac, guarded = ours
                 warp = make_warp(mesh, v, placement, surface, content_size, full, its, frac)
@@ -489,7 +503,7 @@ class WarpPlanner:
         if self.plan_settings.refine_factor > 1:
             return self.refine(surface, content_map, settings, start)
         # the full grid: refine on the content-free step's own mesh
-        return self._refine(mesh, start.depth, content_map, settings, start)
+        return self._refine(mesh, start.depth, content_map, settings, start, surface=surface)
 
     # ------------------------------------------------------------------ helpers
     def _refinement_grid(self, start: ContentFreeWarp) -> tuple[IntArray, IntArray, Grid]:

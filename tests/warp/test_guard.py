@@ -6,13 +6,15 @@ import numpy as np
 import pytest
 
 from adaproj_edge.content.contentmap import ContentMap
-from adaproj_edge.geometry.analytic import simulate_surface
+from adaproj_edge.geometry.analytic import get_surface, simulate_surface
+from adaproj_edge.warp.displayed import STEP, DisplaySamples
 from adaproj_edge.warp.guard import guard, subject_distortion, triangle_distortion
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.placement import place
 from adaproj_edge.warp.solve import solve_conformal
 from adaproj_edge.warp.warpmap import Grid
-from tests.warp.conftest import CONTENT, subject_masks
+from tests.distortion import in_mask, measure
+from tests.warp.conftest import CONTENT, subject_masks, surface, warped
 
 
 @pytest.fixture(scope="module")
@@ -65,3 +67,22 @@ def test_a_better_candidate_is_kept(sphere: MeshGeometry) -> None:
     choice = guard(sphere, (v, pl), (bent, place(sphere, bent, CONTENT)), cmap)
     assert choice.meta["choice"] == "content-aware" and choice.t == 1.0
     assert choice.meta["reason"] and "aware" in choice.meta and "conformal" in choice.meta
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["bumps", "sphere-convex"])
+def test_the_display_measure_is_what_the_display_shows(name: str) -> None:
+    # the guard's measure with the surface (the full grid) against the independent
+    # scorer's on the rendered per-pixel map, at the same sampling
+    warp, m = warped(name, "conformal")
+    s = surface(name)
+    rows, cols = warp.grid_uv.shape[:2]
+    mesh = MeshGeometry.build(s, Grid(cols - 1, rows - 1), grid_uv=warp.grid_uv)
+    xy = warp.image_xy.reshape(-1, 2)[mesh.verts]
+    display = DisplaySamples.build(mesh, s)
+    for mask in ("quarter", "one-left"):
+        ours = subject_distortion(mesh, xy, ContentMap(subject_masks()[mask], CONTENT), display)
+        d = measure(m, get_surface(name), s.projector.K, STEP)
+        d = d.select(in_mask(d, subject_masks()[mask]))
+        assert ours.angle == pytest.approx(d.angle_mean, rel=0.02)
+        assert ours.size == pytest.approx(d.size_std, rel=0.02)

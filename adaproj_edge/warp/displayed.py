@@ -1,0 +1,134 @@
+"""What the full-grid display shows of a warp, sampled: the guard's measure there.
+
+The per-pixel display (:func:`~adaproj_edge.render.maps.map_from_warp` with the surface)
+maps each pixel through its own surface point, projected onto its mesh triangle's plane
+and blended with the neighbour's near an edge (:mod:`adaproj_edge.render.seams`). Where
+the surface bends within a cell (relief finer than the grid) this differs from the mesh's
+own piecewise map by a few percent in angle error, enough to turn the guard's decision
+(issue 13: ``bumps`` with a quarter subject showed 1.02x the conformal warp's angle
+error while the mesh said 0.96x). :class:`DisplaySamples` holds the display's weights at
+every :data:`STEP`-th pixel (they depend on the mesh and the surface alone, not on where
+the vertices go) and scores any positions of the mesh the way the display shows them:
+per small triangle of the sample lattice, the Jacobian content -> surface, its angle
+error and log size, counted where its content is salient. The guard builds it only for
+a close call (:data:`~adaproj_edge.warp.guard.SURE`): about 40 ms for a 20x20 grid, 180 ms
+for the bumps' refined 82x56 one (one core, the other busy).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.render.maps import PixelLayout
+from adaproj_edge.render.seams import surface_weights
+from adaproj_edge.warp.mesh import MeshGeometry
+
+STEP = 8  # sample every STEP-th pixel along x and y (the seams' band is 12 px wide)
+# a triangle whose 3D corners differ from its unfolded shape by this much (relative) has
+# a crease through it: its samples do not count (the map is not differentiable there)
+UNFOLDED = 1e-6
+
+
+@dataclass(frozen=True)
+class DisplaySamples:
+    """The display's weights at a lattice of sample pixels, and the lattice's triangles.
+
+    Attributes
+    ----------
+    corners : (K, N) compact mesh vertex indices of each sample's weights.
+    weights : (K, N) the weights (0 where unused).
+    tris : (M, 3) sample indices of the lattice triangles that count.
+    gram : (M, 2, 2) ``dX^T dX`` of each lattice triangle (its edges on the surface).
+    """
+
+    corners: NDArray[np.intp]
+    weights: FloatArray
+    tris: NDArray[np.intp]
+    gram: FloatArray
+
+    @classmethod
+    def of(cls, mesh: MeshGeometry, surface: Surface) -> DisplaySamples:
+        """The samples of ``mesh`` built from ``surface``; memoised on ``mesh`` (the
+        first surface given counts: the mesh was built from it)."""
+        return mesh.remember("display_samples", lambda: cls.build(mesh, surface))
+
+    @classmethod
+    def build(cls, mesh: MeshGeometry, surface: Surface, step: int = STEP) -> DisplaySamples:
+        """The samples of ``mesh`` (of ``surface``) at every ``step``-th pixel."""
+        proj = surface.projector
+        layout = PixelLayout.build(mesh.grid_uv, proj, step)
+        ys = np.arange(0, proj.height, step, dtype=np.float64)
+        xs = np.arange(0, proj.width, step, dtype=np.float64)
+        uv = np.stack(np.meshgrid(xs, ys), axis=-1)
+        points = surface.points_at(uv)
+        depth = mesh.points[:, 2].copy()
+        depth[~mesh.used] = np.nan
+        depth = depth.reshape(mesh.grid_uv.shape[:2])
+        bary = np.stack([layout.l0, layout.l1, layout.l2])
+        grid_corners, w = surface_weights(
+            mesh.grid_uv, depth, proj, surface, layout.tri, bary, points
+        )
+        # the display's grid vertices as the mesh's compact vertices
+        compact = mesh.index[grid_corners.reshape(grid_corners.shape[0], -1)]
+        w = w.reshape(w.shape[0], -1)
+        w = np.where(compact >= 0, w, np.nan)  # a corner without surface: no sample
+        shown = np.isfinite(w).all(axis=0) & np.isfinite(points.reshape(-1, 3)).all(axis=1)
+        # where a crease runs through the pixel's own triangle, the map has a kink
+        corners3 = mesh.p[mesh.tris]
+        shape_len = np.linalg.norm(mesh.shapes - np.roll(mesh.shapes, -1, axis=1), axis=2)
+        tri_len = np.linalg.norm(corners3 - np.roll(corners3, -1, axis=1), axis=2)
+        flat = np.all(np.abs(tri_len - shape_len) <= UNFOLDED * shape_len, axis=1)
+        grid_flat = np.zeros(2 * mesh.grid.rows * mesh.grid.cols, dtype=bool)  # per grid triangle
+        grid_flat[mesh.topology.rows] = flat
+        shown &= grid_flat[layout.tri.reshape(-1)]
+        rows, cols = layout.tri.shape
+        idx = np.arange(rows * cols).reshape(rows, cols)
+        a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]
+        tris = np.concatenate(
+            [np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)]
+        )
+        tris = tris[shown[tris].all(axis=1)]
+        x = points.reshape(-1, 3)
+        dx = np.stack([x[tris[:, 1]] - x[tris[:, 0]], x[tris[:, 2]] - x[tris[:, 0]]], axis=2)
+        gram = np.einsum("tca,tcb->tab", dx, dx)
+        return cls(np.where(compact >= 0, compact, 0), np.nan_to_num(w), tris, gram)
+
+    def content(self, content_xy: FloatArray) -> FloatArray:
+        """Content positions (N, 2) of the samples for vertex positions (n, 2)."""
+        out: FloatArray = self.weights[0][:, None] * content_xy[self.corners[0]]
+        for k in range(1, self.weights.shape[0]):
+            out += self.weights[k][:, None] * content_xy[self.corners[k]]
+        return out
+
+    def distortion(
+        self, content_xy: FloatArray, content_map: ContentMap
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Angle error, log size and salient weight (M,) of the lattice triangles for
+        vertex positions ``content_xy`` (n, 2); folded triangles weigh 0."""
+        c = self.content(content_xy)
+        q0, q1, q2 = c[self.tris[:, 0]], c[self.tris[:, 1]], c[self.tris[:, 2]]
+        (a, c_), (b, d) = (q1 - q0).T, (q2 - q0).T  # dq = [[a, b], [c_, d]]
+        det = a * d - b * c_
+        good = det > 0
+        det = np.where(good, det, 1.0)
+        # J = dX dq^-1; J^T J = dq^-T (dX^T dX) dq^-1, with dq^-1 = [[d, -b], [-c_, a]] / det
+        m = self.gram
+        m00, m01, m11 = m[:, 0, 0], m[:, 0, 1], m[:, 1, 1]
+        g00 = m00 * d * d - 2 * m01 * d * c_ + m11 * c_ * c_
+        g11 = m00 * b * b - 2 * m01 * a * b + m11 * a * a
+        tr = (g00 + g11) / (det * det)
+        dg = np.maximum((m00 * m11 - m01 * m01) / (det * det), 1e-300)  # det(J^T J)
+        disc = np.sqrt(np.maximum(0.25 * tr * tr - dg, 0.0))
+        l1 = 0.5 * tr + disc
+        l2 = np.maximum(0.5 * tr - disc, 1e-300)
+        angle = np.sqrt(l1 / l2) - 1.0
+        log_size = 0.25 * np.log(dg)
+        centroids = (q0 + q1 + q2) / 3.0
+        weight = content_map.weights(centroids).astype(np.float64) * good
+        return np.where(good, angle, 0.0), np.where(good, log_size, 0.0), weight
