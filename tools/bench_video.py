@@ -20,7 +20,7 @@ took longer than the clip's frame period). Ratios are against the content-free w
 measured in the same run; the load average is printed (the machine is shared).
 
     .venv/bin/python tools/bench_video.py [--frames 150] [--independent-frames 20]
-        [--surface sphere-concave] [--size 1280x720] [--fps 30]
+        [--surface sphere-concave] [--size 1280x720] [--fps 30] [--line-fit]
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -54,6 +55,7 @@ from adaproj_edge.threads import apply_thread_policy  # noqa: E402
 from adaproj_edge.warp.engine import WarpSettings  # noqa: E402
 from adaproj_edge.warp.mesh import WarpCache  # noqa: E402
 from adaproj_edge.warp.planner import PlanSettings, WarpPlanner, compute_warp  # noqa: E402
+from adaproj_edge.warp.temporal import LINE_FIT, TemporalWarpSettings  # noqa: E402
 from tests.content.clips import subject_frame  # noqa: E402
 
 Times = dict[str, list[float]]
@@ -72,9 +74,12 @@ def make_clip(path: Path, n: int, size: tuple[int, int], fps: float) -> Path:
 
 
 class Rig:
-    """The device's planner, display maps and content maps for one clip."""
+    """The device's planner, display maps and content maps for one clip
+    (``temporal``: the clip's warp settings, default the device's)."""
 
-    def __init__(self, clip: Path, surface: Surface) -> None:
+    def __init__(
+        self, clip: Path, surface: Surface, temporal: TemporalWarpSettings | None = None
+    ) -> None:
         s = AppSettings()
         self.info = check_video(clip)
         self.size = (self.info.width, self.info.height)
@@ -82,6 +87,8 @@ class Rig:
             mode="content", grid=s.grid, max_iterations=s.refine_iterations
         )
         plan = PlanSettings(refine_factor=s.refine_factor, warm_start=True)
+        if temporal is not None:
+            plan = replace(plan, temporal=temporal)
         self.planner = WarpPlanner(surface.projector, s.grid, plan, WarpCache())
         p = surface.projector
         self.display = DisplayMapBuilder(p, s.grid.vertices(p), s.map_scale)
@@ -90,8 +97,10 @@ class Rig:
         self.surface = surface
 
 
-def content_aware(clip: Path, surface: Surface, n: int) -> Times:
-    rig = Rig(clip, surface)
+def content_aware(
+    clip: Path, surface: Surface, n: int, temporal: TemporalWarpSettings | None = None
+) -> Times:
+    rig = Rig(clip, surface, temporal)
     player = ClipPlayer(
         rig.clip, surface, rig.planner, rig.display, rig.settings, time.perf_counter
     )
@@ -190,6 +199,11 @@ def main() -> None:
     ap.add_argument("--surface", default="sphere-concave")
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--fps", type=float, default=30.0)
+    ap.add_argument(
+        "--line-fit",
+        action="store_true",
+        help="also content-aware with warp.temporal.LINE_FIT (full grid, line fit)",
+    )
     args = ap.parse_args()
     w, h = (int(x) for x in args.size.split("x"))
     surface = simulate_surface(args.surface)
@@ -207,6 +221,9 @@ def main() -> None:
         )
         ours = content_aware(clip, surface, args.frames)
         ours_fps = report("content-aware (ours)", ours, period, free)
+        if args.line_fit:
+            fit = content_aware(clip, surface, args.frames, LINE_FIT)
+            report("content-aware, LINE_FIT (full grid, line fit)", fit, period, free)
         n = min(args.independent_frames, args.frames)
         indep = report("independent full solves", independent(clip, surface, n), period, free)
         print(f"\nours / independent: {ours_fps / indep:.1f}x the fps")

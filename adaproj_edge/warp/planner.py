@@ -22,13 +22,14 @@ Warm starts (``PlanSettings.warm_start``)
     same surface starts from it and takes at most ``warm_iterations`` steps.
 
 Video frames (``refine(..., frame_dt=dt)``)
-    The saliency weights are graded, a warm start takes at most
+    Refined on the full grid (``PlanSettings.temporal.full_grid``, whatever
+    ``refine_factor``), the saliency weights graded, a warm start takes at most
     ``PlanSettings.temporal.steps`` steps (none while the content map stands still)
     and the result goes through the planner's
     :class:`~adaproj_edge.warp.temporal.WarpSmoother`, so the warp follows a moving
     subject smoothly and stands still on a still scene (:mod:`adaproj_edge.warp.temporal`).
 
-This file is about 520 lines on purpose: it is the one place that decides how a warp is
+This file is about 600 lines on purpose: it is the one place that decides how a warp is
 made (which grid, warm or cold, guarded or not, coarse or fine); the steps it chooses
 between live in modules of their own (``engine``, ``guard``, ``adaptive``, ``temporal``,
 ``coarse``, ``posecache``).
@@ -184,6 +185,7 @@ class _Solution:
     verts: IntArray
     start: ContentFreeWarp  # made for the surface of ``depth``
     depth: FloatArray
+    factor: int  # on the grid this many times coarser than the warp grid
 
 
 def _surface_depth(surface: Surface) -> FloatArray:
@@ -338,7 +340,7 @@ class WarpPlanner:
         held = None if frame_dt is None else self.smoother.held(content_map, start)
         if held is not None and frame_dt is not None:  # the content stands still: so
             return self.smoother.smooth(held, start, frame_dt)  # does the warp
-        rows, cols, grid = self._refinement_grid(start)
+        rows, cols, grid = self._refinement_grid(start, frame_dt is not None)
         mesh = start.refinement_meshes.get(str(grid))
         if mesh is None:
             coarse_uv = start.warp.grid_uv[np.ix_(rows, cols)]
@@ -369,12 +371,12 @@ class WarpPlanner:
         the surface of lattice ``depth``; the guard scores as displayed on ``surface``
         (the one the meshes were built from) when it is given."""
         fine = start.warp
-        factor = self.plan_settings.refine_factor
-        c_rows, c_cols, grid = self._refinement_grid(start)
+        factor = self._factor(frame_dt is not None)
+        c_rows, c_cols, grid = self._refinement_grid(start, frame_dt is not None)
         coarse_settings = replace(settings, grid=grid)
         fine_cols = fine.grid_uv.shape[1]
         to_fine = (c_rows[:, None] * fine_cols + c_cols[None, :]).ravel()
-        v, placement, warm = self._start(mesh, start, to_fine, depth, content_map, settings)
+        v, placement, warm = self._start(mesh, start, to_fine, depth, content_map, settings, factor)
         v_conf = self._on_mesh(start.v_conformal, start, to_fine, mesh.verts)
         extra: dict[str, Any] = {}
         if warm:
@@ -424,7 +426,7 @@ class WarpPlanner:
                 )
                 v, placement, extra["guard"] = choice.v, choice.placement, choice.meta
         if self.plan_settings.warm_start:
-            self._last = _Solution(v, placement, mesh.verts.copy(), start, depth)
+            self._last = _Solution(v, placement, mesh.verts.copy(), start, depth, factor)
         coarse_xy = np.full((to_fine.size, 2), np.nan)
         coarse_xy[mesh.verts] = placement.apply(v)
         rows, cols = fine.grid_uv.shape[:2]
@@ -506,10 +508,19 @@ class WarpPlanner:
         return self._refine(mesh, start.depth, content_map, settings, start, surface=surface)
 
     # ------------------------------------------------------------------ helpers
-    def _refinement_grid(self, start: ContentFreeWarp) -> tuple[IntArray, IntArray, Grid]:
+    def _factor(self, clip: bool) -> int:
+        """The refinement's coarse-to-fine factor: the plan's, or 1 for a clip's frame
+        (``clip``) when ``PlanSettings.temporal.full_grid``."""
+        p = self.plan_settings
+        return 1 if clip and p.temporal.full_grid else p.refine_factor
+
+    def _refinement_grid(
+        self, start: ContentFreeWarp, clip: bool = False
+    ) -> tuple[IntArray, IntArray, Grid]:
         """The refinement grid's fine rows and columns and its Grid: every fine vertex
-        of ``start``'s (maybe adaptively refined) grid, or the coarse subset."""
-        if self.plan_settings.refine_factor > 1:
+        of ``start``'s (maybe adaptively refined) grid, or the coarse subset (``clip``:
+        a clip's frame, see :meth:`_factor`)."""
+        if self._factor(clip) > 1:
             return self.rows, self.cols, self.coarse_grid
         rows, cols = start.warp.grid_uv.shape[:2]
         return np.arange(rows), np.arange(cols), Grid(cols=cols - 1, rows=rows - 1)
@@ -533,13 +544,16 @@ class WarpPlanner:
         depth: FloatArray,
         content_map: ContentMap,
         settings: WarpSettings,
+        factor: int,
     ) -> tuple[FloatArray, Placement, bool]:
-        """Where the alternation starts: the last solution (warm), the content-free
-        positions at the coarse vertices, or (where those miss) a fresh solve."""
+        """Where the alternation starts: the last solution (warm, made on the grid of
+        the same ``factor``), the content-free positions at the coarse vertices, or
+        (where those miss) a fresh solve."""
         last = self._last
         if (
             self.plan_settings.warm_start
             and last is not None
+            and last.factor == factor
             and np.array_equal(last.verts, mesh.verts)
             and surfaces_match(depth, last.depth, self.plan_settings.warm_rel, 0.97)
         ):

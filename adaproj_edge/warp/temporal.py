@@ -4,6 +4,8 @@ A clip's content map moves with its subject (:mod:`adaproj_edge.content.temporal
 every frame gets a content-aware refinement
 (:meth:`~adaproj_edge.warp.planner.WarpPlanner.refine` with ``frame_dt``):
 
+- **on the stills' grid** (the device's: coarse to fine), or on the full grid
+  (:attr:`TemporalWarpSettings.full_grid`);
 - **warm-started**: the refinement starts from the previous frame's solution (the
   planner keeps it) and takes at most :attr:`TemporalWarpSettings.steps` steps, so a
   frame costs a bounded time and the solution follows the subject over a few frames;
@@ -11,7 +13,9 @@ every frame gets a content-aware refinement
   from 0 at ``C = T - band`` to 1 at ``C = T + band`` instead of jumping at ``T``;
 - **filtered in time** (:class:`WarpSmoother`): what is shown is the refined warp
   through a critically damped second-order low-pass filter (two equal exponential
-  stages) on the content coordinates of the grid's vertices;
+  stages) on the content coordinates of the grid's vertices, or (with
+  :attr:`TemporalWarpSettings.window_s` > 0) the least-squares line through the
+  refined warps of that many seconds back, read at this frame's time;
 - **held while the content stands still**: when no value of the content map has moved
   more than :attr:`TemporalWarpSettings.still_change` since the map the last
   refinement ran on, the frame takes no step and the last refined warp is shown again
@@ -22,18 +26,25 @@ every frame gets a content-aware refinement
 Why: the content-aware energy of a still weighs a vertex as salient or not
 (``C >= T``), so as a subject moves, vertices enter and leave the salient set one at a
 time and each frame's optimum jumps - a staircase. Solved independently per frame, the
-warp jerks with it. Graded weights make the optimum move continuously with the
-(smoothly moving) content map; the bounded warm-started steps follow it; the filter
-takes out what is left (a step becomes an S-shaped move without overshoot). A subject
-moving at a steady speed is followed with a lag of about ``2 * time_constant_s``
-(70 ms by default); a still scene settles to a warp that does not move at all (the
-refinement is held, the filter converges geometrically to the held warp).
+warp jerks with it (the content map, whose saliency is run every 4th frame, also moves
+in a 4-frame rhythm). Graded weights make the optimum move more continuously; the
+bounded warm-started steps follow it; the filter takes out what is left.
+
+The low-pass filter follows a subject moving at a steady speed with a lag (two stages
+of 50 ms: ~2 frames, 12 px at 180 px/s), and that lag, more than the refinement, keeps
+the shown warp's subject size inconsistency up to 1.41x an independent full solve's
+on the test clip (docs/video.md). The line fit follows a steady motion without lag
+and averages the jitter over the window; with the full grid it keeps every frame of
+that clip within 1.26x. It is not the default: on the device's playback test (convex
+sphere, 12 fps, a colour detector's map) the full grid leaves the subject at up to
+0.89x the content-free warp's size inconsistency where that test asks 0.75x, and a
+subject that turns back is up to 1.33x the independent solve (docs/video.md).
 
 The smoother starts again (no blending) when the refinement starts on another
 content-free warp (a new pose: the vertices then belong to another surface), when the
-grid's vertex set changes, and after :meth:`WarpSmoother.reset`. A filtered warp that
-would fold a triangle (never seen: both inputs are fold-free and close) is replaced by
-the refined warp itself.
+grid's vertex set changes, when no clip time passed since the last frame (a jump), and
+after :meth:`WarpSmoother.reset`. A fitted warp that would fold a triangle is replaced
+by the refined warp itself (the window starts again).
 
 Pure: the caller passes the time between frames (seconds of clip time); no clock.
 """
@@ -65,32 +76,47 @@ class TemporalWarpSettings:
         Half-width of the content-map interval over which a vertex's weight grows from
         0 to 1, around the threshold T (0: the still's step at T).
     time_constant_s : float
-        Time constant of each of the filter's two stages (s). 0.05 s moves each stage
-        49 % of the way per frame at 30 fps (the smallest that keeps the moving
-        subject's warp 5x smoother than independent solves since those became
-        steadier with the guarded alternation; 0.07 s lags the subject's size).
+        Time constant of each of the low-pass filter's two stages (s; with
+        ``window_s`` 0). 0.05 s moves each stage 49 % of the way per frame at 30 fps
+        (the smallest that keeps the moving subject's warp 5x smoother than
+        independent solves; 0.07 s lags the subject's size).
+    window_s : float
+        0: the two-stage low-pass filter. > 0: the line fitted in time instead, over
+        the refined warps of this many seconds back (0.4 s: 13 frames at 30 fps; see
+        :class:`WarpSmoother`).
     still_change : float
         A frame whose content map differs from the last refined one by at most this
         much everywhere takes no step (the warp is held; 0: always refine).
+    full_grid : bool
+        Refine a clip's frames on every vertex of the warp grid, whatever the
+        planner's ``refine_factor`` (False: the stills' grid).
     """
 
     steps: int = 2
     band: float = 0.1
     time_constant_s: float = 0.05
+    window_s: float = 0.0
     still_change: float = 0.01
+    full_grid: bool = False
 
     def __post_init__(self) -> None:
         if self.steps < 1 or not 0.0 <= self.band < 0.5 or not self.time_constant_s >= 0.0:
             raise ValueError("need steps >= 1, 0 <= band < 0.5 and time_constant_s >= 0")
-        if not self.still_change >= 0.0:
-            raise ValueError("need still_change >= 0")
+        if not self.window_s >= 0.0 or not self.still_change >= 0.0:
+            raise ValueError("need window_s >= 0 and still_change >= 0")
 
     def gain(self, dt: float) -> float:
-        """The fraction of the way to its input each stage moves in ``dt`` seconds
-        (1: no smoothing, for ``time_constant_s`` 0 or a jump in time)."""
+        """The fraction of the way to its input each low-pass stage moves in ``dt``
+        seconds (1: no smoothing, for ``time_constant_s`` 0 or a jump in time)."""
         if self.time_constant_s <= 0.0 or not dt > 0.0:
             return 1.0
         return 1.0 - math.exp(-dt / self.time_constant_s)
+
+
+LINE_FIT = TemporalWarpSettings(steps=3, band=0.05, window_s=0.4, full_grid=True)
+"""The line fit on the full grid: within 1.3x of an independent full solve on every
+frame of the moving-subject test clip (tests/warp/test_temporal.py); not the default
+(module docstring)."""
 
 
 @dataclass(frozen=True)
@@ -122,7 +148,20 @@ class GradedContentMap(ContentMap):
 
 
 class WarpSmoother:
-    """A critically damped low-pass filter on the vertices of successive warps.
+    """A filter in time on the vertices of successive warps.
+
+    Two ways (:attr:`TemporalWarpSettings.window_s`):
+
+    - **low-pass** (``window_s`` 0, the default): a critically damped second-order
+      low-pass filter, two equal exponential stages of ``time_constant_s``; a step
+      becomes an S-shaped move without overshoot, a steady motion is followed about
+      ``2 * time_constant_s`` late;
+    - **line fit** (``window_s`` > 0): each frame's refined warp joins a window of the
+      last ``window_s`` seconds; what is shown is, vertex by vertex, the least-squares
+      line through the window's content coordinates against clip time, read at this
+      frame's time: a steady motion is followed without lag, the jitter averaged over
+      the window; where the motion changes the line overshoots (a step: by at most
+      29 %, within one window).
 
     Parameters
     ----------
@@ -132,8 +171,10 @@ class WarpSmoother:
     def __init__(self, settings: TemporalWarpSettings | None = None) -> None:
         self.settings = settings or TemporalWarpSettings()
         self._source: object | None = None
-        self._first: FloatArray | None = None  # the first stage's state (R, C, 2)
-        self._out: FloatArray | None = None  # the second stage's: what is shown
+        self._times: list[float] = []  # clip time of each warp in the window (s)
+        self._window: list[FloatArray] = []  # their image_xy (R, C, 2); the last only
+        self._first: FloatArray | None = None  # the low-pass's first stage (R, C, 2)
+        self._out: FloatArray | None = None  # and its second: what is shown
         self._refined: Warp | None = None  # the last refinement's warp
         self._refined_map: NDArray[np.float32] | None = None  # and the map it ran on
         self.resets = 0
@@ -142,8 +183,8 @@ class WarpSmoother:
     def reset(self) -> None:
         """Forget the past: the next warp is shown as it comes."""
         self._source = None
-        self._first = None
-        self._out = None
+        self._times, self._window = [], []
+        self._first = self._out = None
         self._refined = None
         self._refined_map = None
 
@@ -171,8 +212,8 @@ class WarpSmoother:
 
     @property
     def active(self) -> bool:
-        """Whether the filter holds a past (the next warp will be blended into it)."""
-        return self._out is not None
+        """Whether the filter holds a past (the next warp will be fitted with it)."""
+        return bool(self._window)
 
     def smooth(self, warp: Warp, source: object, dt: float) -> Warp:
         """The warp to show for a frame ``dt`` seconds after the last one.
@@ -185,38 +226,66 @@ class WarpSmoother:
             What the refinement started from (the content-free warp of the pose); a
             different one starts the filter again.
         dt : float
-            Seconds since the last frame (clip time).
+            Seconds since the last frame (clip time; not > 0: start again).
 
         Returns
         -------
         Warp
-            ``warp`` with its ``image_xy`` filtered in time; ``meta["smoothed"]`` says
-            whether it was blended with the past.
+            ``warp`` with its ``image_xy`` fitted in time; ``meta["smoothed"]`` says
+            whether the past took part.
         """
         xy = np.asarray(warp.image_xy, np.float64)
-        out, first = self._out, self._first
+        last = self._window[-1] if self._window else None
         fresh = (
-            out is None
-            or first is None
+            last is None
             or source is not self._source
-            or out.shape != xy.shape
-            or not np.array_equal(np.isnan(out), np.isnan(xy))
+            or not dt > 0.0
+            or last.shape != xy.shape
+            or not np.array_equal(np.isnan(last), np.isnan(xy))
         )
-        if fresh or out is None or first is None:
+        if fresh:
             self._start(xy, source)
             return replace(warp, meta={**warp.meta, "smoothed": False})
-        g = self.settings.gain(dt)
-        first = first + g * (xy - first)
-        shown = out + g * (first - out)
+        shown = self._line(xy, dt) if self.settings.window_s > 0.0 else self._lowpass(xy, dt)
+        if shown is None:
+            return replace(warp, meta={**warp.meta, "smoothed": False})
         smoothed = replace(warp, image_xy=shown, meta={**warp.meta, "smoothed": True})
         if fold_count(smoothed):
             self._start(xy, source)
             return replace(warp, meta={**warp.meta, "smoothed": False})
-        self._first, self._out = first, shown
         return smoothed
+
+    def _lowpass(self, xy: FloatArray, dt: float) -> FloatArray:
+        """The two stages moved towards ``xy``; the second (what is shown)."""
+        assert self._first is not None and self._out is not None  # not fresh
+        g = self.settings.gain(dt)
+        self._first = self._first + g * (xy - self._first)
+        self._out = self._out + g * (self._first - self._out)
+        self._times, self._window = [self._times[-1] + dt], [xy]
+        return self._out
+
+    def _line(self, xy: FloatArray, dt: float) -> FloatArray | None:
+        """``xy`` into the window; the fitted lines at now (None: ``xy`` alone)."""
+        now = self._times[-1] + dt
+        keep = [i for i, t in enumerate(self._times) if t >= now - self.settings.window_s - 1e-9]
+        self._times = [self._times[i] for i in keep] + [now]
+        self._window = [self._window[i] for i in keep] + [xy]
+        return self._fit(now) if len(self._times) >= 2 else None
+
+    def _fit(self, now: float) -> FloatArray:
+        """The window's least-squares lines, vertex by vertex, at time ``now``."""
+        t = np.asarray(self._times)
+        t = t - t.mean()
+        stack = np.stack(self._window)
+        mean = stack.mean(axis=0)
+        slope = np.tensordot(t, stack - mean, axes=(0, 0)) / float(np.sum(t * t))
+        out: FloatArray = mean + slope * (now - float(np.mean(self._times)))
+        return out
 
     def _start(self, xy: FloatArray, source: object) -> None:
         self.resets += 1
         self._source = source
+        self._times = [0.0]
+        self._window = [xy.copy()]
         self._first = xy.copy()
         self._out = xy.copy()

@@ -9,16 +9,23 @@ same content map of each frame: the fixed content-free warp (the paper's way for
 video) and an independent full-grid solve of the frame (``compute_warp``).
 
 The issue asks for the subject's size inconsistency within 1.3x of an independent full
-solve on every frame. Measured (45 frames, 180 px/s): 1.17x on average, 1.49x at worst
-(frame 19); the per-frame worst case is set by the independent solves' own jitter
-(0.0009-0.0018 from one frame to the next, where the shown warp stays within
-0.0011-0.0016), and a cold solve by the device's coarse-to-fine planner of the same
-frame is itself up to 1.45x the full-grid one. So the test asserts 1.3x on the mean
-and 1.5x per frame (docs/video.md).
+solve on every frame. Measured (``tools/measure_video.py``; 45 frames, 180 px/s):
+
+- the device's defaults (coarse grid, 2 steps, two-stage low-pass of 50 ms): 1.09x on
+  average, 1.41x at worst (frame 19; frame 0, the coarse grid's cold solve, 1.40x).
+  The gap is the low-pass filter's lag (~2 frames; unfiltered, the same refinements
+  are 1.00x on average) and the coarse grid's cold first frame. So the defaults are
+  asserted at 1.5x per frame and 1.3x on the mean;
+- the line fit on the full grid (:data:`LINE_FIT`: 3 steps, band 0.05, 0.4 s window):
+  1.02x on average, 1.25x at worst (frame 19), RMS acceleration 5.4x lower than the
+  independent solves'; asserted at 1.3x on every frame, also for a subject that
+  stops halfway (1.25x). It is not the device's default: see
+  :mod:`adaproj_edge.warp.temporal` (the playback test on the convex sphere).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import cache
 
@@ -36,7 +43,12 @@ from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import WarpCache
 from adaproj_edge.warp.orientation import fold_count
 from adaproj_edge.warp.planner import ContentFreeWarp, PlanSettings, WarpPlanner, compute_warp
-from adaproj_edge.warp.temporal import GradedContentMap, TemporalWarpSettings, WarpSmoother
+from adaproj_edge.warp.temporal import (
+    LINE_FIT,
+    GradedContentMap,
+    TemporalWarpSettings,
+    WarpSmoother,
+)
 from adaproj_edge.warp.warpmap import Warp
 from tests.content.clips import subject_frame
 from tests.distortion import Distortion, in_mask, measure
@@ -63,19 +75,28 @@ def planner(plan: PlanSettings = DEVICE_PLAN) -> WarpPlanner:
     return WarpPlanner(simulate_surface(SURFACE).projector, plan=plan, cache=WarpCache())
 
 
+MOTIONS: dict[str, Callable[[int], tuple[NDArray[np.uint8], NDArray[np.bool_]]]] = {
+    "right": lambda i: subject_frame(i, SIZE, 6.0),  # 180 px/s across a 640 px frame
+    "still": lambda i: subject_frame(i, SIZE, 0.0),
+    "stops": lambda i: subject_frame(min(i, 22), SIZE, 6.0),  # halfway, at 0.73 s
+    "fast": lambda i: subject_frame(i, SIZE, 9.0, start=0.15),  # 270 px/s
+}
+"""Frame i of each test clip and its subject's true mask."""
+
+
 @cache
-def played(speed: float) -> Played:
+def played(motion: str, temporal: TemporalWarpSettings | None = None) -> Played:
     surface = simulate_surface(SURFACE)
-    device = planner()
+    device = planner(DEVICE_PLAN if temporal is None else replace(DEVICE_PLAN, temporal=temporal))
     cf = device.content_free(surface, SIZE, SETTINGS)
     maps = TemporalContentMap(SIZE, SaliencyModel())
     out = Played(cf, [], [], [])
     for i in range(FRAMES):
-        image, mask = subject_frame(i, SIZE, speed)
+        image, mask = MOTIONS[motion](i)
         cmap = maps.update(image)
         out.masks.append(mask)
         out.shown.append(device.refine(surface, cmap, SETTINGS, cf, frame_dt=1 / FPS))
-        if speed:
+        if motion != "still":
             out.independent.append(compute_warp(surface, SIZE, cmap, SETTINGS))
     return out
 
@@ -102,32 +123,51 @@ def acceleration(warps: list[Warp]) -> float:
     return float(np.sqrt(np.mean(acc[np.isfinite(acc)] ** 2)))
 
 
+def size_ratios(p: Played) -> tuple[FloatArray, FloatArray]:
+    """Per frame, the subject's size inconsistency in the shown warp over the
+    independent full solve's and over the content-free warp's."""
+    fixed = drawn(p.content_free.warp)  # the same warp on every frame: measured once
+    full, free = [], []
+    for shown, independent, mask in zip(p.shown, p.independent, p.masks, strict=True):
+        ours = subject_size(shown, mask)
+        full.append(ours / subject_size(independent, mask))
+        free.append(ours / subject_size(fixed, mask))
+    return np.array(full), np.array(free)
+
+
 @pytest.mark.slow
 def test_moving_subject_keeps_its_size_on_every_frame() -> None:
-    p = played(6.0)  # 180 px/s across a 640 px frame
-    ratios = []
-    fixed = drawn(p.content_free.warp)  # the same warp on every frame: measured once
-    for i, mask in enumerate(p.masks):
-        ours = subject_size(p.shown[i], mask)
-        free = subject_size(fixed, mask)
-        full = subject_size(p.independent[i], mask)
-        assert ours <= 0.6 * free, (i, ours, free)
-        assert ours <= 1.5 * full, (i, ours, full)  # see the module's docstring
-        ratios.append(ours / full)
-    assert np.mean(ratios) <= 1.3, ratios
+    full, free = size_ratios(played("right"))  # the device's defaults
+    assert np.all(free <= 0.6), np.round(free, 3)
+    assert np.all(full <= 1.5), np.round(full, 3)  # see the module's docstring
+    assert np.mean(full) <= 1.3, np.round(full, 3)
 
 
 @pytest.mark.slow
-def test_moving_subject_moves_the_warp_smoothly() -> None:
-    p = played(6.0)
+@pytest.mark.parametrize("motion", ["right", "stops"])
+def test_line_fit_on_the_full_grid_keeps_the_size_within_1_3x_on_every_frame(
+    motion: str,
+) -> None:
+    full, free = size_ratios(played(motion, LINE_FIT))
+    assert np.all(free <= 0.6), np.round(free, 3)
+    assert np.all(full <= 1.3), np.round(full, 3)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("temporal", [None, LINE_FIT], ids=["low-pass", "line-fit"])
+def test_moving_subject_moves_the_warp_smoothly(temporal: TemporalWarpSettings | None) -> None:
+    p = played("right", temporal)
     ours, independent = acceleration(p.shown), acceleration(p.independent)
     assert ours * 5 <= independent, (ours, independent)
     assert all(fold_count(w) == 0 for w in p.shown)
 
 
 @pytest.mark.slow
-def test_still_scene_gives_a_still_warp_after_a_second() -> None:
-    p = played(0.0)
+@pytest.mark.parametrize("temporal", [None, LINE_FIT], ids=["low-pass", "line-fit"])
+def test_still_scene_gives_a_still_warp_after_a_second(
+    temporal: TemporalWarpSettings | None,
+) -> None:
+    p = played("still", temporal)
     xy = np.stack([w.image_xy for w in p.shown])
     motion = np.linalg.norm(np.diff(xy, axis=0), axis=-1)  # (frames - 1, R, C)
     after = motion[round(FPS) - 1 :]
@@ -166,10 +206,61 @@ def test_smoother_gain_follows_the_frame_interval() -> None:
     assert s.gain(1 / 30) == pytest.approx(1 - np.exp(-1 / 30 / 0.035))
     assert s.gain(1 / 15) > s.gain(1 / 30) > s.gain(1 / 60) > 0
     assert s.gain(0.0) == 1.0 and TemporalWarpSettings(time_constant_s=0.0).gain(0.1) == 1.0
+
+
+def test_smoother_follows_a_steady_motion_without_lag_and_settles() -> None:
+    base = _warp(np.zeros((21, 21, 2)))
+    a = base.grid_uv * 0.4 + 10.0
+    smoother = WarpSmoother(TemporalWarpSettings(window_s=0.4))
+    source = object()
+    first = smoother.smooth(replace(base, image_xy=a), source, 1 / FPS)
+    assert not first.meta["smoothed"] and np.array_equal(first.image_xy, a)
+    # 2 px a frame, with +-0.5 px of jitter: followed where it is, the jitter averaged
+    jitter = [0.5 * (-1) ** n for n in range(1, 41)]
+    moving = [a + 2.0 * n + j for n, j in enumerate(jitter, 1)]
+    path = [smoother.smooth(replace(base, image_xy=xy), source, 1 / FPS) for xy in moving]
+    offsets = np.array([float(np.mean(w.image_xy - a)) for w in path])
+    late = np.arange(1, 41)[15:]
+    assert np.all(np.abs(offsets[15:] - 2.0 * late) < 0.1)  # no lag
+    acc_in = np.diff([2.0 * n + j for n, j in enumerate(jitter, 1)], 2)
+    assert np.sqrt(np.mean(np.diff(offsets[15:], 2) ** 2)) < 0.1 * np.sqrt(np.mean(acc_in**2))
+    # it stops: a line fitted to a turn overshoots for a while, then settles exactly
+    b = moving[-1]
+    stopped = [smoother.smooth(replace(base, image_xy=b), source, 1 / FPS) for _ in range(20)]
+    over = np.array([float(np.mean(w.image_xy - b)) for w in stopped])
+    assert np.all(over <= 0.3 * 2.0 * 0.4 * FPS)  # < 30 % of the window's travel
+    assert np.allclose(stopped[-1].image_xy, b, atol=1e-9) and stopped[-1].meta["smoothed"]
+    # another source (a new pose) is shown as it comes
+    other = smoother.smooth(replace(base, image_xy=a), object(), 1 / FPS)
+    assert np.array_equal(other.image_xy, a) and not other.meta["smoothed"]
+
+
+@pytest.mark.parametrize("fps", [15.0, 30.0, 60.0])
+def test_smoother_window_is_clip_time(fps: float) -> None:
+    base = _warp(np.zeros((21, 21, 2)))
+    a = base.grid_uv * 0.4 + 10.0
+    smoother = WarpSmoother(TemporalWarpSettings(window_s=0.4))
+    source = object()
+    for _ in range(5):
+        smoother.smooth(replace(base, image_xy=a), source, 1 / fps)
+    steps = [smoother.smooth(replace(base, image_xy=a + 8.0), source, 1 / fps) for _ in range(40)]
+    settled = [np.allclose(w.image_xy, a + 8.0, atol=1e-9) for w in steps]
+    frames = round(0.4 * fps)  # then the last ``a`` has left the window
+    assert all(settled[frames:]) and not settled[frames - 1]
+    # no time between frames (a jump): shown as it comes
+    jump = smoother.smooth(replace(base, image_xy=a), source, 0.0)
+    assert np.array_equal(jump.image_xy, a) and not jump.meta["smoothed"]
+
+
+def test_temporal_settings_are_checked() -> None:
     with pytest.raises(ValueError, match="steps"):
         TemporalWarpSettings(steps=0)
     with pytest.raises(ValueError, match="band"):
         TemporalWarpSettings(band=0.5)
+    with pytest.raises(ValueError, match="window_s"):
+        TemporalWarpSettings(window_s=-1.0)
+    with pytest.raises(ValueError, match="time_constant_s"):
+        TemporalWarpSettings(time_constant_s=-1.0)
 
 
 def test_graded_weights_rise_smoothly_through_the_threshold() -> None:
