@@ -214,9 +214,13 @@ def guard(
         vt = t * va + (1 - t) * base
         if not unfolded(vt, mesh.tris):
             continue
-        pt = place(mesh, vt, content_map.content_size, up, pa)
-        m = subject_distortion(mesh, pt.apply(vt), content_map)
-        if judge.no_worse(pt.apply(vt), m, "blend"):
+        # judged where the content-aware warp's placement puts it (the measures do not
+        # change with a similarity, and what is salient barely moves): only the blend
+        # kept is placed (a placement costs more than the measure)
+        xy = pa.apply(vt)
+        m = subject_distortion(mesh, xy, content_map)
+        if judge.no_worse(xy, m, "blend"):
+            pt = place(mesh, vt, content_map.content_size, up, pa)
             meta.update(
                 choice="blend",
                 reason="the content-aware warp alone is worse in angle or size",
