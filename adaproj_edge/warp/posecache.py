@@ -145,18 +145,14 @@ class PoseCache(Generic[E]):
                 return item
             self.rejected += 1
             del self._items[key]
-        for other in reversed(list(self._items)):
-            cand = self._items[other]
-            if (
-                cand.frames >= min_frames
-                and ok(cand)
-                and surfaces_match(depth, cand.depth, max_rel, min_overlap)
-            ):
-                del self._items[other]
-                self._items[key] = cand
-                self.hits += 1
-                self.found_by_surface += 1
-                return cand
+        found = self._find(depth, max_rel, min_overlap, min_frames, ok)
+        if found is not None:
+            other, cand = found
+            del self._items[other]
+            self._items[key] = cand
+            self.hits += 1
+            self.found_by_surface += 1
+            return cand
         self.misses += 1
         return None
 
@@ -170,14 +166,27 @@ class PoseCache(Generic[E]):
     ) -> E | None:
         """The most recent entry that fits ``depth`` (and ``accept``), whatever its key;
         neither counted nor moved (what a new entry of the same surface is made from)."""
-        ok = accept or (lambda e: True)
-        for item in reversed(list(self._items.values())):
+        found = self._find(depth, max_rel, min_overlap, min_frames, accept or (lambda e: True))
+        return None if found is None else found[1]
+
+    def _find(
+        self,
+        depth: FloatArray,
+        max_rel: float,
+        min_overlap: float,
+        min_frames: int,
+        ok: Callable[[E], bool],
+    ) -> tuple[Key, E] | None:
+        """The most recent entry (and its key) made from at least ``min_frames`` frames
+        that ``ok`` accepts and whose surface matches ``depth``."""
+        for key in reversed(list(self._items)):
+            item = self._items[key]
             if (
                 item.frames >= min_frames
                 and ok(item)
                 and surfaces_match(depth, item.depth, max_rel, min_overlap)
             ):
-                return item
+                return key, item
         return None
 
     def put(self, key: Key, item: E) -> None:
