@@ -147,71 +147,98 @@ def unfold_creases(
     corner_n = vn[tris[rough_t]]  # (R, 3, 3)
     with np.errstate(invalid="ignore"):
         differ = np.any(np.einsum("rkj,rj->rk", corner_n, corner_n[:, 0]) < CREASE_COS, axis=1)
-    for t in rough_t[differ & np.all(np.isfinite(corner_n), axis=(1, 2))]:
-        groups = _crease_groups(vn[tris[t]])
-        if groups is None:
-            continue
-        group_a, group_b = groups
-        n_a, n_b = vn[tris[t, group_a]], vn[tris[t, group_b]]
-        na, pa = _plane(n_a, tri_pts[t, group_a], n_b.mean(axis=0))
-        nb, pb = _plane(n_b, tri_pts[t, group_b], n_a.mean(axis=0))
-        # a crease only if the two planes explain the surface inside the triangle (a
-        # strongly curved smooth patch, e.g. near a silhouette, is left as it is)
-        probe = xs[t][np.all(np.isfinite(xs[t]), axis=1)]
-        fit = np.minimum(np.abs((probe - pa) @ na), np.abs((probe - pb) @ nb))
-        if probe.size == 0:
-            continue
-        # straight creases: the two planes explain the surface; curved ones (a curved
-        # wall meeting a floor): far better than the triangle does (a smooth curved
-        # patch is explained about as badly by its corners' planes as by its chord)
-        worst = float(np.max(fit))
-        chord = float(np.max(np.where(np.isfinite(dist[t]), dist[t], 0.0)))
-        if worst > FIT * ROUGH * float(size[t]) and worst > CURVED_FIT * chord:
-            continue
-        rot, origin = _unfolding_rotation(pa, na, pb, nb)
+    cand = rough_t[differ & np.all(np.isfinite(corner_n), axis=(1, 2))]
+    if cand.size == 0:
+        return unfolding
+    lone, pair_a = _crease_groups(vn[tris[cand]])
+    cand, lone, pair_a = cand[lone >= 0], lone[lone >= 0], pair_a[lone >= 0]
+    # the two sides' planes, from the corners' planes; a: the side of corner 0
+    pair = np.stack([(lone + 1) % 3, (lone + 2) % 3], axis=1)
+    pair.sort(axis=1)
+    corner_vn, corner_pt = vn[tris[cand]], tri_pts[cand]  # (C, 3, 3)
+    at = np.arange(cand.size)
+    n_pair, p_pair = corner_vn[at[:, None], pair], corner_pt[at[:, None], pair]  # (C, 2, 3)
+    n_lone, p_lone = corner_vn[at, lone], corner_pt[at, lone]
+    plane_pair = _pair_plane(n_pair, p_pair, n_lone)
+    plane_lone = (n_lone / np.linalg.norm(n_lone, axis=1, keepdims=True), p_lone)
+    side = pair_a[:, None]
+    na = np.where(side, plane_pair[0], plane_lone[0])
+    pa = np.where(side, plane_pair[1], plane_lone[1])
+    nb = np.where(side, plane_lone[0], plane_pair[0])
+    pb = np.where(side, plane_lone[1], plane_pair[1])
+    # a crease only if the two planes explain the surface inside the triangle (a
+    # strongly curved smooth patch, e.g. near a silhouette, is left as it is)
+    probe = xs[cand]  # (C, 4, 3)
+    seen = np.all(np.isfinite(probe), axis=2)
+    fit = np.minimum(
+        np.abs(np.einsum("cpj,cj->cp", probe - pa[:, None], na)),
+        np.abs(np.einsum("cpj,cj->cp", probe - pb[:, None], nb)),
+    )
+    worst = np.max(np.where(seen, fit, -np.inf), axis=1)
+    # straight creases: the two planes explain the surface; curved ones (a curved wall
+    # meeting a floor): far better than the triangle does (a smooth curved patch is
+    # explained about as badly by its corners' planes as by its chord)
+    chord = np.max(np.where(np.isfinite(dist[cand]), dist[cand], 0.0), axis=1)
+    straight = worst <= FIT * ROUGH * size[cand]
+    keep = np.any(seen, axis=1) & (straight | (worst <= CURVED_FIT * chord))
+    for c in np.flatnonzero(keep):  # few: the triangles a crease runs through
+        t = cand[c]
+        rot, origin = _unfolding_rotation(pa[c], na[c], pb[c], nb[c])
+        group_b = [lone[c]] if pair_a[c] else list(pair[c])
         out[t, group_b] = origin + (tri_pts[t, group_b] - origin) @ rot.T
         unfolding.folded[t] = True
-        unfolding.normal_a[t], unfolding.point_a[t] = na, pa
-        unfolding.normal_b[t], unfolding.point_b[t] = nb, pb
+        unfolding.normal_a[t], unfolding.point_a[t] = na[c], pa[c]
+        unfolding.normal_b[t], unfolding.point_b[t] = nb[c], pb[c]
         unfolding.rotation[t], unfolding.origin[t] = rot, origin
-        if worst > FIT * ROUGH * float(size[t]):  # a curved crease: soften the side choice
-            unfolding.softness[t] = SOFTNESS * worst
+        if not straight[c]:  # a curved crease: soften the side choice
+            unfolding.softness[t] = SOFTNESS * worst[c]
     return unfolding
 
 
-def _crease_groups(normals: FloatArray) -> tuple[list[int], list[int]] | None:
-    """The corners (by their planes' normals (3, 3)) on either side of a crease: the two
-    most different planes are its sides and the third corner joins the nearer one, if
-    it is much nearer to it (on a curved wall two corners' planes differ a little); the
-    side with corner 0 first. None without a single crease."""
-    pairs = ((0, 1), (0, 2), (1, 2))
-    dots = [float(normals[i] @ normals[j]) for i, j in pairs]
-    i, j = pairs[int(np.argmin(dots))]
-    crease = float(np.arccos(np.clip(min(dots), -1.0, 1.0)))
-    if min(dots) >= CREASE_COS:
-        return None
+def _crease_groups(normals: FloatArray) -> tuple[IntArray, NDArray[np.bool_]]:
+    """The corners, by their planes' normals (C, 3, 3), on either side of a crease.
+
+    The two most different planes are its sides and the third corner joins the nearer
+    one, if it is much nearer to it (on a curved wall two corners' planes differ a
+    little). Returns the corner alone on its side (C,), -1 without a single crease (no
+    two planes far enough apart, or three different planes), and whether the pair is
+    the side of corner 0 (C,).
+    """
+    pairs = np.array([(0, 1), (0, 2), (1, 2)])
+    dots = np.einsum("cpj,cpj->cp", normals[:, pairs[:, 0]], normals[:, pairs[:, 1]])
+    first = np.argmin(dots, axis=1)  # the two most different corners i, j
+    i, j = pairs[first, 0], pairs[first, 1]
+    lowest = dots[np.arange(dots.shape[0]), first]
+    crease = np.arccos(np.clip(lowest, -1.0, 1.0))
     k = 3 - i - j
-    to_i, to_j = float(normals[k] @ normals[i]), float(normals[k] @ normals[j])
-    partner = i if to_i >= to_j else j
-    if np.arccos(np.clip(max(to_i, to_j), -1.0, 1.0)) > 0.5 * crease:
-        return None  # three different planes: not a single crease
-    side = [partner, k]
-    other = [j] if partner == i else [i]
-    return (sorted(side), other) if 0 in side else (other, sorted(side))
+    at = np.arange(normals.shape[0])
+    to_i = np.einsum("cj,cj->c", normals[at, k], normals[at, i])
+    to_j = np.einsum("cj,cj->c", normals[at, k], normals[at, j])
+    partner_i = to_i >= to_j
+    near = np.arccos(np.clip(np.maximum(to_i, to_j), -1.0, 1.0))
+    lone = np.where(partner_i, j, i)  # k joins its partner, the other stays alone
+    single = (lowest < CREASE_COS) & (near <= 0.5 * crease)
+    return np.where(single, lone, -1), lone != 0
 
 
-def _plane(
+def _pair_plane(
     normals: FloatArray, points: FloatArray, other: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """The plane (unit normal, point) of one side's corners, with normals ``normals``
-    (k, 3) at ``points`` (k, 3): their mean normal through their mean point; but when
-    their normals differ much (a corner on the crease itself has a mix of both sides'
-    normals), the corner farthest from the other side (its normal ``other``)."""
-    if normals.shape[0] > 1 and float(normals[0] @ normals[1]) < SAME_SIDE_COS:
-        k = int(np.argmin(normals @ other))
-        return normals[k], points[k]
-    n = normals.sum(axis=0)
-    return n / np.linalg.norm(n), points.mean(axis=0)
+    """The plane (unit normals (C, 3), points (C, 3)) of the sides with two corners, with
+    normals ``normals`` (C, 2, 3) at ``points`` (C, 2, 3): their mean normal through
+    their mean point; but when their normals differ much (a corner on the crease itself
+    has a mix of both sides' normals), the corner farthest from the other side (its
+    normal ``other`` (C, 3))."""
+    n = normals.sum(axis=1)
+    mean_n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    mean_p = points.mean(axis=1)
+    apart = np.einsum("cj,cj->c", normals[:, 0], normals[:, 1]) < SAME_SIDE_COS
+    far = np.argmin(np.einsum("ckj,cj->ck", normals, other), axis=1)
+    at = np.arange(normals.shape[0])
+    return (
+        np.where(apart[:, None], normals[at, far], mean_n),
+        np.where(apart[:, None], points[at, far], mean_p),
+    )
 
 
 def _unfolding_rotation(

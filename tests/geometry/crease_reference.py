@@ -1,0 +1,122 @@
+"""The crease unfolding triangle by triangle, as it was written before it was vectorised.
+
+``adaproj_edge.geometry.creases`` decides every triangle at once; this module keeps the
+plain per-triangle reading of the same rules (its loop over the rough triangles) so
+that the tests can check the two agree. It returns, for each triangle, whether it is
+unfolded and with which planes, rotation and softness.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.geometry.creases import (
+    CREASE_COS,
+    CURVED_FIT,
+    FIT,
+    ROUGH,
+    SAME_SIDE_COS,
+    SOFTNESS,
+)
+
+
+def crease_groups(normals: FloatArray) -> tuple[list[int], list[int]] | None:
+    """Corners (by their planes' normals (3, 3)) on either side of a single crease, the
+    side with corner 0 first; None without one."""
+    pairs = ((0, 1), (0, 2), (1, 2))
+    dots = [float(normals[i] @ normals[j]) for i, j in pairs]
+    i, j = pairs[int(np.argmin(dots))]
+    if min(dots) >= CREASE_COS:
+        return None
+    crease = float(np.arccos(np.clip(min(dots), -1.0, 1.0)))
+    k = 3 - i - j
+    to_i, to_j = float(normals[k] @ normals[i]), float(normals[k] @ normals[j])
+    partner = i if to_i >= to_j else j
+    if np.arccos(np.clip(max(to_i, to_j), -1.0, 1.0)) > 0.5 * crease:
+        return None
+    side = [partner, k]
+    other = [j] if partner == i else [i]
+    return (sorted(side), other) if 0 in side else (other, sorted(side))
+
+
+def side_plane(
+    normals: FloatArray, points: FloatArray, other: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """One side's plane: the mean of its corners' planes, or the corner farthest from
+    the other side when its two corners' planes differ much."""
+    if normals.shape[0] > 1 and float(normals[0] @ normals[1]) < SAME_SIDE_COS:
+        k = int(np.argmin(normals @ other))
+        return normals[k], points[k]
+    n = normals.sum(axis=0)
+    return n / np.linalg.norm(n), points.mean(axis=0)
+
+
+def decide(
+    t: int,
+    corner_normals: FloatArray,
+    corner_points: FloatArray,
+    probes: FloatArray,
+    chord_dist: FloatArray,
+    size: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]] | None:
+    """Triangle ``t``'s crease, from its corners' planes' normals (3, 3), its corners (3, 3),
+    its probes' surface points (4, 3) and their distances to its chord plane (4,): the
+    planes a (na, pa) and b (nb, pb), the softness and the corners of side b; None when
+    it is not unfolded."""
+    groups = crease_groups(corner_normals)
+    if groups is None:
+        return None
+    group_a, group_b = groups
+    n_a, n_b = corner_normals[group_a], corner_normals[group_b]
+    na, pa = side_plane(n_a, corner_points[group_a], n_b.mean(axis=0))
+    nb, pb = side_plane(n_b, corner_points[group_b], n_a.mean(axis=0))
+    probe = probes[np.all(np.isfinite(probes), axis=1)]
+    if probe.size == 0:
+        return None
+    fit = np.minimum(np.abs((probe - pa) @ na), np.abs((probe - pb) @ nb))
+    worst = float(np.max(fit))
+    chord = float(np.max(np.where(np.isfinite(chord_dist), chord_dist, 0.0)))
+    if worst > FIT * ROUGH * size and worst > CURVED_FIT * chord:
+        return None
+    softness = SOFTNESS * worst if worst > FIT * ROUGH * size else 0.0
+    return na, pa, nb, pb, softness, group_b
+
+
+def unfold_reference(
+    tris: np.ndarray, points: FloatArray, probes: FloatArray
+) -> dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]]]:
+    """Every triangle's crease decision, triangle by triangle: ``tris`` (T, 3) vertex
+    indices into ``points`` (N, 3), ``probes`` (T, 4, 3) the surface at each triangle's
+    edge midpoints and centroid. Keys: the unfolded triangles."""
+    normals: dict[int, FloatArray] = {}
+    sizes: dict[int, float] = {}
+    dists: dict[int, FloatArray] = {}
+    rough: set[int] = set()
+    for t, (a, b, c) in enumerate(tris):
+        p0, p1, p2 = points[a], points[b], points[c]
+        n = -np.cross(p1 - p0, p2 - p0)  # facing the projector
+        area2 = float(np.linalg.norm(n))
+        sizes[t] = float(np.sqrt(area2))
+        normals[t] = n / area2 if area2 > 0 else np.full(3, np.nan)
+        dists[t] = np.abs((probes[t] - p0) @ normals[t])
+        finite = dists[t][np.isfinite(dists[t])]
+        if finite.size and float(finite.max()) > ROUGH * sizes[t]:
+            rough.add(t)
+    vertex_sum = np.zeros_like(points, dtype=np.float64)
+    for t, corners in enumerate(tris):
+        if t in rough or not np.all(np.isfinite(normals[t])):
+            continue
+        for v in corners:
+            vertex_sum[v] += normals[t] * sizes[t] ** 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        vertex_n = vertex_sum / np.linalg.norm(vertex_sum, axis=1, keepdims=True)
+    out = {}
+    for t in sorted(rough):
+        corner_n = vertex_n[tris[t]]
+        if not np.all(np.isfinite(corner_n)):
+            continue
+        found = decide(t, corner_n, points[tris[t]], probes[t], dists[t], sizes[t])
+        if found is not None:
+            out[t] = found
+    return out
