@@ -15,6 +15,9 @@ processes inherit), ``threadpoolctl`` for BLAS/OpenMP libraries already loaded, 
 ``cv2.setNumThreads`` when OpenCV is. onnxruntime sessions are made with one intra- and
 one inter-op thread by :class:`~adaproj_edge.content.model.SaliencyModel`.
 
+The same call puts the allocator policy in force (:mod:`adaproj_edge.allocator`: freed
+memory is kept for the next arrays instead of being faulted in again).
+
 This module imports nothing heavy: it runs before numpy loads.
 """
 
@@ -103,6 +106,10 @@ def apply_thread_policy(
         changed).
     """
     env = os.environ if environ is None else environ
+    if environ is None:  # the process's own environment: its allocator too
+        from adaproj_edge.allocator import apply_allocator_policy
+
+        apply_allocator_policy(env)
     n = thread_count(env) if threads is None else threads
     if n is None:
         return None
