@@ -250,21 +250,32 @@ def score(pb: Problem, v: FloatArray, mu: float | None) -> Point:
     return Point(mu, s.angle_mean, s.size_std, d.folds)
 
 
-def conformal_bound(pb: Problem, v_conformal: FloatArray, degree: int = 8) -> float:
-    """The least size spread on the subject of any exactly conformal map: the log scale of
-    the conformal map of unknowns ``v_conformal`` (V, 2) plus the best harmonic function
-    of the content position (harmonic polynomials up to ``degree``)."""
-    c_conformal = pb.basis @ v_conformal
-    a, _ = jacobians(pb, c_conformal)
-    ls = np.log(np.abs(a))[pb.subject]
-    z = c_conformal[pb.tris[pb.subject]].mean(axis=1) @ np.array([1.0, 1j])
+def harmonic_residual(z: NDArray[np.complex128], values: FloatArray, degree: int = 8) -> float:
+    """The spread (std) of ``values`` at complex points ``z`` left after the best fit by a
+    harmonic function of z (``Re z^k``, ``Im z^k`` up to ``degree``, and a constant).
+
+    With ``values`` the log size of a conformal map at its content positions ``z``, this
+    is the least size spread of any exactly conformal map of the same piece of surface:
+    every other one is f(z) with f holomorphic, whose log size differs by the harmonic
+    ``log|f'(z)|``."""
     z = (z - z.mean()) / np.abs(z - z.mean()).max()
     basis = [np.ones(z.size)]
     for k in range(1, degree + 1):
         basis += [(z**k).real, (z**k).imag]
     b = np.stack(basis, axis=1)
-    coef, *_ = np.linalg.lstsq(b, ls, rcond=None)
-    return float(np.std(ls - b @ coef))
+    coef, *_ = np.linalg.lstsq(b, values, rcond=None)
+    return float(np.std(values - b @ coef))
+
+
+def conformal_bound(pb: Problem, v_conformal: FloatArray, degree: int = 8) -> float:
+    """The least size spread on the subject of any exactly conformal map: the log scale of
+    the conformal map of unknowns ``v_conformal`` (V, 2) plus the best harmonic function
+    of the content position (:func:`harmonic_residual`)."""
+    c_conformal = pb.basis @ v_conformal
+    a, _ = jacobians(pb, c_conformal)
+    ls = np.log(np.abs(a))[pb.subject]
+    z = c_conformal[pb.tris[pb.subject]].mean(axis=1) @ np.array([1.0, 1j])
+    return harmonic_residual(z, ls, degree)
 
 
 def sweep(
