@@ -230,7 +230,8 @@ def _pair_plane(
     has a mix of both sides' normals), the corner farthest from the other side (its
     normal ``other`` (C, 3))."""
     n = normals.sum(axis=1)
-    mean_n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):  # (only used where they agree)
+        mean_n = n / np.linalg.norm(n, axis=1, keepdims=True)
     mean_p = points.mean(axis=1)
     apart = np.einsum("cj,cj->c", normals[:, 0], normals[:, 1]) < SAME_SIDE_COS
     far = np.argmin(np.einsum("ckj,cj->ck", normals, other), axis=1)
