@@ -101,7 +101,7 @@ class TemporalWarpSettings:
         parabola takes off over those it leaves, all vertices together; at least
         :data:`TURN_MIN_FRAMES` frames); there the line is fitted over the last
         ``turn_window_s`` only (0: no turns). 4: the test clip's subject turning back
-        (frame 22) gives 6.7 from frame 30 on, the other test clips at most 2.8.
+        (frame 22) gives 6.2-8.2 on frames 30-34, the other test clips at most 2.8.
     turn_window_s : float
         The line fit's window at a turn (s).
     residual_gain : float

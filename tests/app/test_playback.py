@@ -256,7 +256,7 @@ def test_projecting_the_warp_follows_the_subject_fold_free_and_not_worse_than_co
     grid, the line fit) give 0.78x, 0.89x, 0.60x, 0.65x: 1.38x, 0.94x, 0.76x, 1.06x
     the independent solve. Frame 5 is the one above 1.3x: the colour detector runs
     every 4th frame, so frames 1-3 are held on frame 0's map and frame 4's warm
-    refinement on the moved map lands off the cold solve (1.47x; 3 or 6 steps alike),
+    refinement on the moved map lands off the cold solve (1.47x; 1, 3 or 6 steps alike),
     which the line fit carries into frame 5; by frame 6, 1.04x. Asserted: below the
     content-free warp on every scored frame, within 1.5x of the independent solve on
     each and 1.1x on their mean. Angle error: 1.13x, 1.01x, 0.90x, 0.86x the
