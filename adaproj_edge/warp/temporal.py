@@ -323,6 +323,7 @@ class WarpSmoother:
         if turn:
             self.turns += 1
             recent = times >= now - s.turn_window_s - 1e-9
+            recent[-2:] = True  # a line needs two frames, whatever the clip's rate
             times, stack = times[recent], stack[recent]
         mean_t = float(times.mean())
         t = times - mean_t

@@ -268,6 +268,12 @@ def test_smoother_takes_a_turn_with_a_shorter_window_and_not_a_steady_motion() -
     # here), the path is followed sooner
     assert errors["turns"][22:36].mean() < 0.6 * errors["line"][22:36].mean()
     assert errors["turns"][26:36].max() < 0.5 * errors["line"][26:36].max()
+    # a turn window shorter than a frame: the line through the newest two
+    smoother, source = WarpSmoother(TemporalWarpSettings(turn_window_s=0.01)), object()
+    for x in path:
+        shown_xy = smoother.smooth(replace(base, image_xy=a + x), source, 1 / FPS).image_xy
+        assert np.isfinite(shown_xy).all()
+    assert smoother.turns > 0
     # a steady motion (the same jitter) is no turn: the line, the residual's share added
     smoother, source = WarpSmoother(TemporalWarpSettings()), object()
     steady = [
