@@ -20,7 +20,7 @@ took longer than the clip's frame period). Ratios are against the content-free w
 measured in the same run; the load average is printed (the machine is shared).
 
     .venv/bin/python tools/bench_video.py [--frames 150] [--independent-frames 20]
-        [--surface sphere-concave] [--size 1280x720] [--fps 30] [--line-fit]
+        [--surface sphere-concave] [--size 1280x720] [--fps 30] [--low-pass] [--line-fit]
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ from adaproj_edge.threads import apply_thread_policy  # noqa: E402
 from adaproj_edge.warp.engine import WarpSettings  # noqa: E402
 from adaproj_edge.warp.mesh import WarpCache  # noqa: E402
 from adaproj_edge.warp.planner import PlanSettings, WarpPlanner, compute_warp  # noqa: E402
-from adaproj_edge.warp.temporal import LINE_FIT, TemporalWarpSettings  # noqa: E402
+from adaproj_edge.warp.temporal import LINE_FIT, LOW_PASS, TemporalWarpSettings  # noqa: E402
 from tests.content.clips import subject_frame  # noqa: E402
 
 Times = dict[str, list[float]]
@@ -200,9 +200,14 @@ def main() -> None:
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--fps", type=float, default=30.0)
     ap.add_argument(
+        "--low-pass",
+        action="store_true",
+        help="also content-aware with warp.temporal.LOW_PASS (the defaults before issue 15)",
+    )
+    ap.add_argument(
         "--line-fit",
         action="store_true",
-        help="also content-aware with warp.temporal.LINE_FIT (full grid, line fit)",
+        help="also content-aware with warp.temporal.LINE_FIT (the plain line fit)",
     )
     args = ap.parse_args()
     w, h = (int(x) for x in args.size.split("x"))
@@ -221,9 +226,12 @@ def main() -> None:
         )
         ours = content_aware(clip, surface, args.frames)
         ours_fps = report("content-aware (ours)", ours, period, free)
+        if args.low_pass:
+            low = content_aware(clip, surface, args.frames, LOW_PASS)
+            report("content-aware, LOW_PASS (coarse grid, low-pass)", low, period, free)
         if args.line_fit:
             fit = content_aware(clip, surface, args.frames, LINE_FIT)
-            report("content-aware, LINE_FIT (full grid, line fit)", fit, period, free)
+            report("content-aware, LINE_FIT (full grid, plain line fit)", fit, period, free)
         n = min(args.independent_frames, args.frames)
         indep = report("independent full solves", independent(clip, surface, n), period, free)
         print(f"\nours / independent: {ours_fps / indep:.1f}x the fps")

@@ -11,7 +11,8 @@ independent solves', and the steps per frame.
 
     .venv/bin/python tools/measure_video.py             # the device's defaults
     .venv/bin/python tools/measure_video.py --line-fit  # warp.temporal.LINE_FIT
-    .venv/bin/python tools/measure_video.py --window 0.5 --full-grid --steps 2  # ...
+    .venv/bin/python tools/measure_video.py --low-pass  # warp.temporal.LOW_PASS
+    .venv/bin/python tools/measure_video.py --turn-ratio 0 --window 0.3  # ...
 
 (slow: about 30 s a clip on one core; the saliency model runs on every 4th frame.)
 """
@@ -33,36 +34,57 @@ from adaproj_edge.content.temporal import TemporalContentMap  # noqa: E402
 from adaproj_edge.geometry.analytic import simulate_surface  # noqa: E402
 from adaproj_edge.threads import apply_thread_policy  # noqa: E402
 from adaproj_edge.warp.planner import compute_warp  # noqa: E402
-from adaproj_edge.warp.temporal import LINE_FIT, TemporalWarpSettings  # noqa: E402
-from tests.content.clips import subject_frame  # noqa: E402
+from adaproj_edge.warp.temporal import LINE_FIT, LOW_PASS, TemporalWarpSettings  # noqa: E402
 from tests.warp import test_temporal as clips  # noqa: E402
 
-TURNS = {"turns": lambda i: subject_frame(22 - abs(i - 22), clips.SIZE, 6.0)}
+PRESETS = {"line_fit": LINE_FIT, "low_pass": LOW_PASS}
+
+
+def add_temporal_args(ap: argparse.ArgumentParser) -> None:
+    """The temporal settings' options (each unset one: the device's default)."""
+    ap.add_argument("--steps", type=int)
+    ap.add_argument("--band", type=float)
+    ap.add_argument("--time-constant", type=float, help="s")
+    ap.add_argument("--window", type=float, help="s (0: the low-pass filter)")
+    ap.add_argument(
+        "--full-grid", action=argparse.BooleanOptionalAction, help="not the stills' grid"
+    )
+    ap.add_argument("--turn-ratio", type=float, help="0: no turns")
+    ap.add_argument("--turn-window", type=float, help="s")
+    ap.add_argument("--residual-gain", type=float)
+    ap.add_argument("--line-fit", action="store_true", help="start from warp.temporal.LINE_FIT")
+    ap.add_argument("--low-pass", action="store_true", help="start from warp.temporal.LOW_PASS")
+
+
+def temporal_from(args: argparse.Namespace) -> TemporalWarpSettings:
+    """The temporal settings the options ask for: a preset (or the defaults) with the
+    options given."""
+    base = TemporalWarpSettings()
+    for name, preset in PRESETS.items():
+        if getattr(args, name):
+            base = preset
+    given = {
+        "steps": args.steps,
+        "band": args.band,
+        "time_constant_s": args.time_constant,
+        "window_s": args.window,
+        "full_grid": args.full_grid,
+        "turn_ratio": args.turn_ratio,
+        "turn_window_s": args.turn_window,
+        "residual_gain": args.residual_gain,
+    }
+    return replace(base, **{k: v for k, v in given.items() if v is not None})
 
 
 def main() -> None:
     apply_thread_policy(1)
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    d = TemporalWarpSettings()
     ap.add_argument("--motions", default="right,stops,fast,turns")
-    ap.add_argument("--steps", type=int, default=d.steps)
-    ap.add_argument("--band", type=float, default=d.band)
-    ap.add_argument("--time-constant", type=float, default=d.time_constant_s, help="s")
-    ap.add_argument("--window", type=float, default=d.window_s, help="s (0: low-pass)")
-    ap.add_argument("--full-grid", action="store_true", help="not the stills' grid")
-    ap.add_argument("--line-fit", action="store_true", help="warp.temporal.LINE_FIT")
+    add_temporal_args(ap)
     args = ap.parse_args()
-    temporal = TemporalWarpSettings(
-        steps=args.steps,
-        band=args.band,
-        time_constant_s=args.time_constant,
-        window_s=args.window,
-        full_grid=args.full_grid,
-    )
-    if args.line_fit:
-        temporal = LINE_FIT
+    temporal = temporal_from(args)
     plan = replace(clips.DEVICE_PLAN, temporal=temporal)
-    motions = {**clips.MOTIONS, **TURNS}
+    motions = clips.MOTIONS
     surface = simulate_surface(clips.SURFACE)
     print(f"{temporal}")
     for name in args.motions.split(","):

@@ -22,8 +22,8 @@ Warm starts (``PlanSettings.warm_start``)
     same surface starts from it and takes at most ``warm_iterations`` steps.
 
 Video frames (``refine(..., frame_dt=dt)``)
-    Refined on the refinement grid (the full grid instead with
-    ``PlanSettings.temporal.full_grid``, as in ``temporal.LINE_FIT``), the saliency
+    Refined on the full grid (``PlanSettings.temporal.full_grid``, the default; the
+    refinement grid without it, as in ``temporal.LOW_PASS``), the saliency
     weights graded, a warm start takes at most
     ``PlanSettings.temporal.steps`` steps (none while the content map stands still)
     and the result goes through the planner's

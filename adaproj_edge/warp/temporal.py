@@ -4,18 +4,21 @@ A clip's content map moves with its subject (:mod:`adaproj_edge.content.temporal
 every frame gets a content-aware refinement
 (:meth:`~adaproj_edge.warp.planner.WarpPlanner.refine` with ``frame_dt``):
 
-- **on the stills' grid** (the device's: coarse to fine), or on the full grid
-  (:attr:`TemporalWarpSettings.full_grid`);
+- **on the full grid** (the default, :attr:`TemporalWarpSettings.full_grid`), or on
+  the stills' grid (the device's for stills: coarse to fine);
 - **warm-started**: the refinement starts from the previous frame's solution (the
   planner keeps it) and takes at most :attr:`TemporalWarpSettings.steps` steps, so a
   frame costs a bounded time and the solution follows the subject over a few frames;
 - **graded saliency** (:class:`GradedContentMap`): a vertex's weight rises smoothly
   from 0 at ``C = T - band`` to 1 at ``C = T + band`` instead of jumping at ``T``;
-- **filtered in time** (:class:`WarpSmoother`): what is shown is the refined warp
-  through a critically damped second-order low-pass filter (two equal exponential
-  stages) on the content coordinates of the grid's vertices, or (with
-  :attr:`TemporalWarpSettings.window_s` > 0) the least-squares line through the
-  refined warps of that many seconds back, read at this frame's time;
+- **fitted in time** (:class:`WarpSmoother`; the default): what is shown is, vertex by
+  vertex, the least-squares line through the refined warps of the last
+  :attr:`TemporalWarpSettings.window_s` seconds (0.4 s) against clip time, read at this
+  frame's time, plus a share (``residual_gain``) of the newest refinements' mean
+  residual from it; where the refinements turn (a parabola fits the window much better
+  than the line: ``turn_ratio``) the line is fitted over the last ``turn_window_s``
+  only. Or (``window_s`` 0) a critically damped second-order low-pass filter (two
+  equal exponential stages);
 - **held while the content stands still**: when no value of the content map has moved
   more than :attr:`TemporalWarpSettings.still_change` since the map the last
   refinement ran on, the frame takes no step and the last refined warp is shown again
@@ -30,15 +33,17 @@ warp jerks with it (the content map, whose saliency is run every 4th frame, also
 in a 4-frame rhythm). Graded weights make the optimum move more continuously; the
 bounded warm-started steps follow it; the filter takes out what is left.
 
-The low-pass filter follows a subject moving at a steady speed with a lag (two stages
-of 50 ms: ~2 frames, 12 px at 180 px/s), and that lag, more than the refinement, keeps
-the shown warp's subject size inconsistency up to 1.41x an independent full solve's
-on the test clip (docs/video.md). The line fit follows a steady motion without lag
-and averages the jitter over the window; with the full grid it keeps every frame of
-that clip within 1.26x. It is not the default: on the device's playback test (convex
-sphere, 12 fps, a colour detector's map) the full grid leaves the subject at up to
-0.89x the content-free warp's size inconsistency where that test asks 0.75x, and a
-subject that turns back is up to 1.33x the independent solve (docs/video.md).
+The low-pass filter (:data:`LOW_PASS`, the default before issue 15) follows a subject
+moving at a steady speed with a lag (two stages of 50 ms: ~2 frames, 12 px at 180
+px/s), and that lag and the coarse grid's cold first frame keep the shown warp's
+subject size inconsistency up to 1.41x an independent full solve's on the test clip
+(docs/video.md). The line fit follows a steady motion without lag and averages the
+jitter over the window; on the full grid (:data:`LINE_FIT`) every frame of that clip
+is within 1.25x, but a subject that turns back reaches 1.33x: the line overshoots the
+turn for a window. The turn test and the residual's share (the defaults) bring that
+clip to 1.29x and keep the others at 1.23x, the moving subject's warp still 5.1x
+smoother than independent solves (the residual and a shorter window both add jitter:
+a 0.3-s window alone gives 1.26x on the turn but 4.4x; measured in docs/video.md).
 
 The smoother starts again (no blending) when the refinement starts on another
 content-free warp (a new pose: the vertices then belong to another surface), when the
@@ -77,33 +82,53 @@ class TemporalWarpSettings:
         0 to 1, around the threshold T (0: the still's step at T).
     time_constant_s : float
         Time constant of each of the low-pass filter's two stages (s; with
-        ``window_s`` 0). 0.05 s moves each stage 49 % of the way per frame at 30 fps
-        (the smallest that keeps the moving subject's warp 5x smoother than
-        independent solves; 0.07 s lags the subject's size).
+        ``window_s`` 0, as in :data:`LOW_PASS`). 0.05 s moves each stage 49 % of the
+        way per frame at 30 fps (the smallest that keeps the moving subject's warp 5x
+        smoother than independent solves; 0.07 s lags the subject's size).
     window_s : float
-        0: the two-stage low-pass filter. > 0: the line fitted in time instead, over
-        the refined warps of this many seconds back (0.4 s: 13 frames at 30 fps; see
-        :class:`WarpSmoother`).
+        > 0: the line fitted in time, over the refined warps of this many seconds back
+        (0.4 s: 13 frames at 30 fps; see :class:`WarpSmoother`). 0: the two-stage
+        low-pass filter instead.
     still_change : float
         A frame whose content map differs from the last refined one by at most this
         much everywhere takes no step (the warp is held; 0: always refine).
     full_grid : bool
         Refine a clip's frames on every vertex of the warp grid, whatever the
-        planner's ``refine_factor`` (False: the stills' grid).
+        planner's ``refine_factor`` (False: the stills' grid, coarse to fine).
+    turn_ratio : float
+        With the line fit: a turn is where a parabola fits the window's refined warps
+        better than the line by more than this ratio (the squared residuals the
+        parabola takes off over those it leaves, all vertices together; at least
+        :data:`TURN_MIN_FRAMES` frames); there the line is fitted over the last
+        ``turn_window_s`` only (0: no turns). 4: the test clip's subject turning back
+        (frame 22) gives 6.2-8.2 on frames 30-34, the other test clips at most 2.8.
+    turn_window_s : float
+        The line fit's window at a turn (s).
+    residual_gain : float
+        With the line fit: the share of the mean residual of the newest
+        :data:`RESIDUAL_FRAMES` refined warps from the line added to what is shown
+        (0: the line alone; 1: the line moved through them).
     """
 
-    steps: int = 2
-    band: float = 0.1
+    steps: int = 3
+    band: float = 0.05
     time_constant_s: float = 0.05
-    window_s: float = 0.0
+    window_s: float = 0.4
     still_change: float = 0.01
-    full_grid: bool = False
+    full_grid: bool = True
+    turn_ratio: float = 4.0
+    turn_window_s: float = 0.2
+    residual_gain: float = 0.2
 
     def __post_init__(self) -> None:
         if self.steps < 1 or not 0.0 <= self.band < 0.5 or not self.time_constant_s >= 0.0:
             raise ValueError("need steps >= 1, 0 <= band < 0.5 and time_constant_s >= 0")
         if not self.window_s >= 0.0 or not self.still_change >= 0.0:
             raise ValueError("need window_s >= 0 and still_change >= 0")
+        if not self.turn_ratio >= 0.0 or not self.turn_window_s > 0.0:
+            raise ValueError("need turn_ratio >= 0 and turn_window_s > 0")
+        if not 0.0 <= self.residual_gain <= 1.0:
+            raise ValueError("need 0 <= residual_gain <= 1")
 
     def gain(self, dt: float) -> float:
         """The fraction of the way to its input each low-pass stage moves in ``dt``
@@ -113,10 +138,21 @@ class TemporalWarpSettings:
         return 1.0 - math.exp(-dt / self.time_constant_s)
 
 
-LINE_FIT = TemporalWarpSettings(steps=3, band=0.05, window_s=0.4, full_grid=True)
-"""The line fit on the full grid: within 1.3x of an independent full solve on every
-frame of the moving-subject test clip (tests/warp/test_temporal.py); not the default
-(module docstring)."""
+TURN_MIN_FRAMES = 6
+"""Frames the line fit's window needs before a turn is looked for (a parabola through
+fewer follows the jitter)."""
+RESIDUAL_FRAMES = 3
+"""The newest refined warps whose mean residual from the line ``residual_gain`` adds."""
+
+LINE_FIT = TemporalWarpSettings(turn_ratio=0.0, residual_gain=0.0)
+"""The plain line fit on the full grid (issue 13's option): no turns, no residual (a
+subject that turns back: up to 1.33x an independent full solve, docs/video.md)."""
+
+LOW_PASS = TemporalWarpSettings(
+    steps=2, band=0.1, window_s=0.0, full_grid=False, turn_ratio=0.0, residual_gain=0.0
+)
+"""The defaults before issue 15: the stills' (coarse) grid, 2 steps, the two-stage
+low-pass filter (up to 1.41x an independent full solve, docs/video.md)."""
 
 
 @dataclass(frozen=True)
@@ -152,16 +188,20 @@ class WarpSmoother:
 
     Two ways (:attr:`TemporalWarpSettings.window_s`):
 
-    - **low-pass** (``window_s`` 0, the default): a critically damped second-order
-      low-pass filter, two equal exponential stages of ``time_constant_s``; a step
-      becomes an S-shaped move without overshoot, a steady motion is followed about
-      ``2 * time_constant_s`` late;
-    - **line fit** (``window_s`` > 0): each frame's refined warp joins a window of the
-      last ``window_s`` seconds; what is shown is, vertex by vertex, the least-squares
-      line through the window's content coordinates against clip time, read at this
-      frame's time: a steady motion is followed without lag, the jitter averaged over
-      the window; where the motion changes the line overshoots (a step: by at most
-      29 %, within one window).
+    - **line fit** (``window_s`` > 0, the default): each frame's refined warp joins a
+      window of the last ``window_s`` seconds; what is shown is, vertex by vertex, the
+      least-squares line through the window's content coordinates against clip time,
+      read at this frame's time: a steady motion is followed without lag, the jitter
+      averaged over the window; where the motion changes the line overshoots (a step:
+      by at most 29 %, within one window). With ``turn_ratio`` > 0, where a parabola
+      fits the window that much better than the line (a turn: ``turns`` counts them),
+      the line is fitted over the last ``turn_window_s`` only; with
+      ``residual_gain`` > 0, that share of the newest refinements' mean residual from
+      the line is added (off at a turn);
+    - **low-pass** (``window_s`` 0): a critically damped second-order low-pass
+      filter, two equal exponential stages of ``time_constant_s``; a step becomes an
+      S-shaped move without overshoot, a steady motion is followed about
+      ``2 * time_constant_s`` late.
 
     Parameters
     ----------
@@ -179,6 +219,7 @@ class WarpSmoother:
         self._refined_map: NDArray[np.float32] | None = None  # and the map it ran on
         self.resets = 0
         self.holds = 0
+        self.turns = 0
 
     def reset(self) -> None:
         """Forget the past: the next warp is shown as it comes."""
@@ -273,14 +314,39 @@ class WarpSmoother:
         return self._fit(now) if len(self._times) >= 2 else None
 
     def _fit(self, now: float) -> FloatArray:
-        """The window's least-squares lines, vertex by vertex, at time ``now``."""
-        t = np.asarray(self._times)
-        t = t - t.mean()
-        stack = np.stack(self._window)
+        """What is shown at time ``now``: the window's least-squares lines, vertex by
+        vertex (over the last ``turn_window_s`` at a turn), moved by
+        ``residual_gain`` of the newest refinements' mean residual from them."""
+        s = self.settings
+        times, stack = np.asarray(self._times), np.stack(self._window)
+        turn = s.turn_ratio > 0.0 and times.size >= TURN_MIN_FRAMES and self._turning(times, stack)
+        if turn:
+            self.turns += 1
+            recent = times >= now - s.turn_window_s - 1e-9
+            recent[-2:] = True  # a line needs two frames, whatever the clip's rate
+            times, stack = times[recent], stack[recent]
+        mean_t = float(times.mean())
+        t = times - mean_t
         mean = stack.mean(axis=0)
         slope = np.tensordot(t, stack - mean, axes=(0, 0)) / float(np.sum(t * t))
-        out: FloatArray = mean + slope * (now - float(np.mean(self._times)))
+        out: FloatArray = mean + slope * (now - mean_t)
+        if s.residual_gain > 0.0 and not turn and times.size > RESIDUAL_FRAMES + 2:
+            k = RESIDUAL_FRAMES
+            line = mean + slope * t[-k:, None, None, None]
+            out = out + s.residual_gain * np.mean(stack[-k:] - line, axis=0)
         return out
+
+    def _turning(self, times: FloatArray, stack: FloatArray) -> bool:
+        """Whether the vertices' paths in the window turn: a parabola in time fits
+        them better than a line by more than ``turn_ratio`` (module docstring)."""
+        values = stack.reshape(times.size, -1)
+        values = values[:, np.isfinite(values).all(axis=0)]
+        t = (times - times.mean()) / max(float(np.ptp(times)), 1e-9)
+        basis = np.stack([np.ones_like(t), t, t * t], axis=1)
+        line = values - basis[:, :2] @ np.linalg.lstsq(basis[:, :2], values, rcond=None)[0]
+        curve = values - basis @ np.linalg.lstsq(basis, values, rcond=None)[0]
+        left, taken = float(np.sum(curve**2)), float(np.sum(line**2) - np.sum(curve**2))
+        return taken > self.settings.turn_ratio * max(left, 1e-12)
 
     def _start(self, xy: FloatArray, source: object) -> None:
         self.resets += 1
