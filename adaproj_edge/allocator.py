@@ -33,7 +33,6 @@ calls this too. This module imports nothing heavy.
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import logging
 import os
 from collections.abc import Callable, Mapping
@@ -56,11 +55,11 @@ Mallopt = Callable[[int, int], int]
 
 
 def _glibc_mallopt() -> Mallopt | None:
-    """``mallopt`` of the process's C library, or None where there is none."""
-    name = ctypes.util.find_library("c")
+    """``mallopt`` of the process's C library, or None where there is none (looked up in
+    the process's own symbols: no ``ldconfig`` run as ``ctypes.util.find_library``
+    would)."""
     try:
-        libc = ctypes.CDLL(name)
-        func = libc.mallopt
+        func = ctypes.CDLL(None).mallopt
     except (OSError, AttributeError, TypeError):
         return None
     func.argtypes = [ctypes.c_int, ctypes.c_int]
