@@ -19,10 +19,13 @@ docs/engine.md).
   up to this much;
 - ``M_TOP_PAD`` = :data:`TOP_PAD`: the heap grows by this much more than asked.
 
-The memory kept is bounded by these values (a few tens of MB against the 2-4 GB of the
-board): ``tools/bench_memory.py``'s 60-s replay peaks at 291 MB with the policy and 282
-MB without (its limit: 300 MB). Larger values (64 MB kept, 16 MB of pad) went over it
-for no further gain. On a C library without ``mallopt`` (musl) nothing changes and that
+The memory kept is bounded by these values (tens of MB against the 2-4 GB of the
+board), but the runtime's budget is tighter (``tools/bench_memory.py``: 300 MB), so they
+are the least that keep the faults away: the 60-s replay peaks at 292 MB with the policy
+and 282 MB without, the 150-s one at 299 and 291 MB (plateaus 288 and 280). Keeping 32
+MB with 8 MB of pad peaked at 302 MB there; keeping 8 MB brought the faults back (1650
+per set-up); an mmap threshold of 2 or 4 MB made the replay's start reach 800 MB.
+On a C library without ``mallopt`` (musl) nothing changes and that
 is logged. ``ADAPROJ_MALLOC=default`` leaves the allocator's own defaults (for a
 baseline).
 
@@ -48,8 +51,8 @@ M_MMAP_THRESHOLD = -3
 """glibc's ``mallopt`` parameter numbers (``malloc.h``)."""
 
 MMAP_THRESHOLD = 8 << 20
-TRIM_THRESHOLD = 32 << 20
-TOP_PAD = 8 << 20
+TRIM_THRESHOLD = 16 << 20
+TOP_PAD = 4 << 20
 
 Mallopt = Callable[[int, int], int]
 
