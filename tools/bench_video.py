@@ -73,6 +73,18 @@ def make_clip(path: Path, n: int, size: tuple[int, int], fps: float) -> Path:
     return path
 
 
+_MODEL: list[SaliencyModel] = []
+
+
+def shared_model() -> SaliencyModel:
+    """The saliency model every way plays with: one session for the process, as the
+    device keeps one (``app/content.py``), so its first runs' warm-up is paid once (by the
+    tool's warm-up play), not by the first frames of every way measured."""
+    if not _MODEL:
+        _MODEL.append(SaliencyModel())
+    return _MODEL[0]
+
+
 class Rig:
     """The device's planner, display maps and content maps for one clip
     (``temporal``: the clip's warp settings, default the device's)."""
@@ -92,7 +104,7 @@ class Rig:
         self.planner = WarpPlanner(surface.projector, s.grid, plan, WarpCache())
         p = surface.projector
         self.display = DisplayMapBuilder(p, s.grid.vertices(p), s.map_scale)
-        maps = TemporalContentMap(self.size, SaliencyModel(), grid=(s.grid.rows, s.grid.cols))
+        maps = TemporalContentMap(self.size, shared_model(), grid=(s.grid.rows, s.grid.cols))
         self.clip = ClipFrames(clip, maps, self.info)
         self.surface = surface
 
