@@ -13,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.geometry.creases import (
     _crease_groups,
@@ -20,13 +21,19 @@ from adaproj_edge.geometry.creases import (
     crease_probes,
     unfold_creases,
 )
+from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import grid_triangles
 from tests.geometry.crease_reference import crease_groups, side_plane, unfold_reference
 
 SURFACES = ("corner", "cylinder-floor", "cone-wall", "sphere-concave", "bumps")
 
 
-def grid_mesh(name: str, cells: int, noise: float, seed: int = 0):  # type: ignore[no-untyped-def]
+def grid_mesh(
+    name: str, cells: int, noise: float, seed: int = 0
+) -> tuple[Surface, FloatArray, IntArray, FloatArray, FloatArray]:
+    """A ``cells`` x ``cells`` grid on surface ``name``: the surface, the triangles'
+    pixel corners, their vertex indices, the vertices' and the probes' surface points
+    (depth scaled by 1 + ``noise`` x a standard normal)."""
     surface = simulate_surface(name, step=4)
     p = surface.projector
     xs = np.linspace(0, p.width - 1, cells + 1)
@@ -36,7 +43,7 @@ def grid_mesh(name: str, cells: int, noise: float, seed: int = 0):  # type: igno
     tri_uv = uv[tris]
     rng = np.random.default_rng(seed)
 
-    def at(q: np.ndarray) -> np.ndarray:
+    def at(q: FloatArray) -> FloatArray:
         pts = surface.points_at(q).astype(np.float64)
         return pts * (1 + noise * rng.standard_normal(pts.shape[:-1]))[..., None]
 
