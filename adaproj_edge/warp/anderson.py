@@ -45,18 +45,16 @@ class Anderson:
         m = len(self._f) - 1
         if m < 1:
             return gx
-        df = [self._f[k + 1] - self._f[k] for k in range(m)]
+        df = np.diff(np.stack(self._f), axis=0)  # (m, N)
         # the least-squares mix by its (small) normal equations, lightly regularised
-        gram = np.array([[float(a @ b) for b in df] for a in df])
+        gram = df @ df.T
         gram[np.diag_indices_from(gram)] *= 1.0 + 1e-10
         try:
-            gamma = np.linalg.solve(gram, np.array([float(a @ f) for a in df]))
+            gamma = np.linalg.solve(gram, df @ f)
         except np.linalg.LinAlgError:
             self.reset()
             return gx
-        out = gx.copy()
-        for k in range(m):
-            out -= gamma[k] * (self._g[k + 1] - self._g[k])
+        out: FloatArray = gx - gamma @ np.diff(np.stack(self._g), axis=0)
         if not np.all(np.isfinite(out)):
             self.reset()
             return gx

@@ -163,7 +163,8 @@ def content_aware(
         return None
     e = mesh.edges
     salient = (w[e[:, 0]] + w[e[:, 1]]) > 0
-    chord = np.linalg.norm(v_conformal[e[salient, 0]] - v_conformal[e[salient, 1]], axis=1)
+    ends = np.take(v_conformal, e[salient].T, axis=0)  # (2, E', 2)
+    chord = np.linalg.norm(ends[0] - ends[1], axis=1)
     scale = float(np.sum(mesh.lengths[salient]) / np.sum(chord))
     start = Placement(placement.angle, placement.scale / scale, placement.offset, placement.centre)
     v, aware_placement, iterations, fraction = refine(

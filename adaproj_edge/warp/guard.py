@@ -83,30 +83,37 @@ def triangle_distortion(
     """Angle error and log size of the mesh triangles (all, or those where ``keep``
     (T,) holds) for content positions ``content_xy`` (n, 2): the map content -> surface,
     surface in metres."""
-    tris = mesh.tris if keep is None else mesh.tris[keep]
-    q = content_xy[tris]  # (T', 3, 2)
-    p = mesh.shapes if keep is None else mesh.shapes[keep]
-    dq = np.stack([q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]], axis=2)  # columns: edges
-    dp = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)
-    det_q = dq[:, 0, 0] * dq[:, 1, 1] - dq[:, 0, 1] * dq[:, 1, 0]
-    inv = (
-        np.stack(
-            [
-                np.stack([dq[:, 1, 1], -dq[:, 0, 1]], axis=1),
-                np.stack([-dq[:, 1, 0], dq[:, 0, 0]], axis=1),
-            ],
-            axis=1,
-        )
-        / det_q[:, None, None]
-    )
-    j = dp @ inv  # (T, 2, 2): content -> surface
+    q = np.take(content_xy, mesh.tris.T, axis=0)  # (3, T, 2): gathered per corner
+    return _distortion(q, mesh, keep)
+
+
+def _distortion(
+    q: FloatArray, mesh: MeshGeometry, keep: NDArray[np.bool_] | None
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`triangle_distortion` from the triangles' content corners ``q`` (3, T, 2)."""
+    u, v = q[1] - q[0], q[2] - q[0]  # content edges from corner 0
+    pu, pv = mesh.remember("shape edges", lambda: _shape_edges(mesh))
+    if keep is not None:
+        u, v, pu, pv = (np.compress(keep, x, axis=0) for x in (u, v, pu, pv))
+    # the Jacobian content -> surface: [pu pv] [u v]^-1, in closed form
+    det = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+    a = (pu[:, 0] * v[:, 1] - pv[:, 0] * u[:, 1]) / det
+    b = (pv[:, 0] * u[:, 0] - pu[:, 0] * v[:, 0]) / det
+    c = (pu[:, 1] * v[:, 1] - pv[:, 1] * u[:, 1]) / det
+    d = (pv[:, 1] * u[:, 0] - pu[:, 1] * v[:, 0]) / det
     # singular values of a 2x2 matrix in closed form
-    a, b, c, d = j[:, 0, 0], j[:, 0, 1], j[:, 1, 0], j[:, 1, 1]
     s_plus = np.hypot(a + d, c - b)
     s_minus = np.hypot(a - d, c + b)
     s1 = 0.5 * (s_plus + s_minus)
     s2 = np.maximum(0.5 * np.abs(s_plus - s_minus), 1e-300)
     return s1 / s2 - 1.0, 0.5 * np.log(np.maximum(s1 * s2, 1e-300))
+
+
+def _shape_edges(mesh: MeshGeometry) -> tuple[FloatArray, FloatArray]:
+    """The edges (T, 2) from corner 0 to corners 1 and 2 of each surface triangle in
+    its own plane (:attr:`MeshGeometry.shapes`)."""
+    p = mesh.shapes
+    return np.ascontiguousarray(p[:, 1] - p[:, 0]), np.ascontiguousarray(p[:, 2] - p[:, 0])
 
 
 def subject_distortion(
@@ -126,16 +133,18 @@ def subject_distortion(
             return SubjectDistortion(0.0, 0.0, 0.0)
         return _summary(weight, angle, log_size, total)
     # the salient share of a triangle: C >= T at its corners and at its centroid
-    centroids = content_xy[mesh.tris].mean(axis=1)
+    q = np.take(content_xy, mesh.tris.T, axis=0)  # (3, T, 2)
+    centroids = (q[0] + q[1] + q[2]) / 3.0
     salient = content_map.weights(np.concatenate([content_xy, centroids]))
     n = content_xy.shape[0]
-    share = (salient[mesh.tris].sum(axis=1) + salient[n:]) / 4.0
-    weight = share * mesh.pixel_areas
+    t = mesh.tris
+    share = (salient[t[:, 0]] + salient[t[:, 1]] + salient[t[:, 2]] + salient[n:]) / 4.0
+    weight = share * mesh.remember("pixel areas", lambda: mesh.pixel_areas)
     total = float(weight.sum())
     if total <= 0:
         return SubjectDistortion(0.0, 0.0, 0.0)
     keep = weight > 0
-    angle, log_size = triangle_distortion(mesh, content_xy, keep)
+    angle, log_size = _distortion(q, mesh, keep)
     return _summary(weight[keep], angle, log_size, total)
 
 

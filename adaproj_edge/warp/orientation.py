@@ -26,8 +26,8 @@ def signed_areas(points: FloatArray, tris: IntArray) -> FloatArray:
         ``(p1 - p0) x (p2 - p0)``; positive for the grid's own orientation in pixel
         space (x right, y down), NaN where a corner is unknown.
     """
-    q = points[tris]
-    a, b = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+    q = np.take(points, tris.T, axis=0)  # (3, T, 2): per corner (gathers rows fast)
+    a, b = q[1] - q[0], q[2] - q[0]
     out: FloatArray = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
     return out
 

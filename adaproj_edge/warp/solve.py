@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
@@ -49,12 +50,26 @@ class ContentAwareWeights:
 
 def gauge_vertices(mesh: MeshGeometry) -> tuple[int, int]:
     """Two compact vertices to pin: the one nearest the grid centre and the farthest one
-    from it among its row and column neighbours' extremes."""
+    from it among its row and column neighbours' extremes (once per mesh)."""
+    return mesh.remember("gauge vertices", lambda: _gauge_vertices(mesh))
+
+
+def _gauge_vertices(mesh: MeshGeometry) -> tuple[int, int]:
+    """:func:`gauge_vertices`, worked out."""
     uv = mesh.uv
     centre = mesh.grid_uv.reshape(-1, 2).mean(axis=0)
     a = int(np.argmin(np.sum((uv - centre) ** 2, axis=1)))
     b = int(np.argmax(np.sum((uv - uv[a]) ** 2, axis=1)))
     return a, b
+
+
+def conformal_rows(mesh: MeshGeometry) -> tuple[IntArray, NDArray[np.complex128]]:
+    """:func:`~adaproj_edge.warp.terms.complex_conformal_rows` of ``mesh``, made once per
+    mesh (the conformal solve and the content-aware system both start from them; they
+    are shared: read, never write)."""
+    return mesh.remember(
+        "complex conformal rows", lambda: terms.complex_conformal_rows(mesh.tris, mesh.coords)
+    )
 
 
 def _pin_positions(mesh: MeshGeometry, a: int, b: int) -> tuple[FloatArray, FloatArray]:
@@ -73,7 +88,7 @@ def solve_conformal(mesh: MeshGeometry) -> FloatArray:
     Returns (n, 2) positions in surface units.
     """
     n = mesh.n
-    cols, vals = terms.complex_conformal_rows(mesh.tris, mesh.coords)
+    cols, vals = conformal_rows(mesh)
     a, b = gauge_vertices(mesh)
     fixed = np.zeros(n, dtype=bool)
     fixed[[a, b]] = True
@@ -83,8 +98,15 @@ def solve_conformal(mesh: MeshGeometry) -> FloatArray:
     z_fixed[b] = pb[0] + 1j * pb[1]
     system = mesh.topology.remember("conformal", lambda: ComplexLeastSquares(cols, n, fixed))
     system.factor(vals, np.ones(cols.shape[0]))
-    z = system.solve(np.zeros(cols.shape[0], dtype=np.complex128), z_fixed)
-    return np.stack([z.real, z.imag], axis=1)
+    m = cols.shape[0]
+    z = system.solve(np.zeros(m, dtype=np.complex128), z_fixed, zero_rows=m)
+    return _as_xy(z)
+
+
+def _as_xy(z: NDArray[np.complex128]) -> FloatArray:
+    """Complex positions (n,) as (n, 2) x, y (a view of a fresh array)."""
+    out: FloatArray = np.ascontiguousarray(z).view(np.float64).reshape(-1, 2)
+    return out
 
 
 def edge_directions(v: FloatArray, edges: IntArray) -> FloatArray:
@@ -177,25 +199,30 @@ class ContentAwareSolver:
         mesh = self.mesh
         n = mesh.n
         blocks = [
-            terms.complex_conformal_rows(mesh.tris, mesh.coords),
+            conformal_rows(mesh),
             terms.complex_edge_rows(mesh.edges),
             terms.complex_position_rows(n),
         ]
         self.sizes = [b[0].shape[0] for b in blocks]
-        cols = np.full((sum(self.sizes), 3), -1, dtype=np.intp)
         self.vals = np.zeros((sum(self.sizes), 3), dtype=np.complex128)
         start = 0
-        for c, v in blocks:
-            cols[start : start + c.shape[0], : c.shape[1]] = c
-            self.vals[start : start + c.shape[0], : c.shape[1]] = v
-            start += c.shape[0]
+        for _, v in blocks:
+            self.vals[start : start + v.shape[0], : v.shape[1]] = v
+            start += v.shape[0]
         a, _ = gauge_vertices(mesh)
         self.pinned = a
-        fixed = np.zeros(n, dtype=bool)
-        fixed[a] = True
-        self.system = mesh.topology.remember(
-            "content-aware", lambda: ComplexLeastSquares(cols, n, fixed)
-        )
+
+        def system() -> ComplexLeastSquares:
+            cols = np.full((sum(self.sizes), 3), -1, dtype=np.intp)
+            start = 0
+            for c, _ in blocks:
+                cols[start : start + c.shape[0], : c.shape[1]] = c
+                start += c.shape[0]
+            fixed = np.zeros(n, dtype=bool)
+            fixed[a] = True
+            return ComplexLeastSquares(cols, n, fixed)
+
+        self.system = mesh.topology.remember("content-aware", system)
         self.l2 = float(np.mean(mesh.lengths**2))
         self.apex = mesh.tris.reshape(-1)  # rows are (triangle, role): role k's apex is k
         self._const = np.zeros(sum(self.sizes), dtype=np.complex128)
@@ -245,8 +272,8 @@ class ContentAwareSolver:
         const[t1:] = z
         z_fixed = np.zeros(mesh.n, dtype=np.complex128)
         z_fixed[self.pinned] = z[self.pinned]
-        out = self.system.solve(const, z_fixed)
-        return np.stack([out.real, out.imag], axis=1)
+        # the E_a rows aim at zero
+        return _as_xy(self.system.solve(const, z_fixed, zero_rows=t0))
 
 
 @dataclass

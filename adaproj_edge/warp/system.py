@@ -203,37 +203,53 @@ class ComplexLeastSquares:
         fc = free_index[self.cols]
         self.fc = fc
         self.ok_rows = fc >= 0
-        self.entry_rows = np.broadcast_to(np.arange(cols.shape[0])[:, None], cols.shape)[
-            self.ok_rows
-        ]  # the row of each coefficient of a free unknown
-        self.entry_free = fc[self.ok_rows]
-        fixed_entry = fixed[np.where(cols >= 0, cols, 0)] & (cols >= 0)
-        self.fixed_rows = np.flatnonzero(fixed_entry.any(axis=1))  # rows that see a fixed one
+        # the row of each coefficient of a free unknown (in row order)
+        self.entry_rows = np.nonzero(self.ok_rows)[0]
+        self.entry_at = np.flatnonzero(self.ok_rows)  # where they are in (m, k) order
+        self.entry_free = fc.reshape(-1)[self.entry_at]
+        # rows that see a fixed unknown (a used coefficient that has no free index)
+        fixed_entry = np.flatnonzero((fc < 0) & (self.cols < n))
+        self.fixed_rows = np.unique(fixed_entry // cols.shape[1])
         self.pair_a, self.pair_b = np.triu_indices(cols.shape[1])
         i, j = fc[:, self.pair_a], fc[:, self.pair_b]
         ok = (i >= 0) & (j >= 0)
         lo, hi = np.minimum(i, j), np.maximum(i, j)
         self.swap = i > j  # the pair lands below the diagonal: conjugate its product
         # two coefficients of one unknown add twice the real part of their product
-        self.twice = (i == j) & (self.pair_a != self.pair_b)[None, :]
+        self.twice_at = np.flatnonzero((i == j) & (self.pair_a != self.pair_b)[None, :])
         band = int(np.max(np.where(ok, hi - lo, 0))) if ok.any() else 0
         self.band = band
         self.dump = (band + 1) * self.nf
         self.flat = np.where(ok, (band + lo - hi) * self.nf + hi, self.dump).ravel()
+        # the coupling of the free unknowns to the fixed ones: per coefficient pair of a
+        # fixed-seeing row, where its product lands in the (nf, n_fixed) matrix
+        self.fixed_list = np.flatnonzero(fixed)
+        slot = np.full(n + 1, -1, dtype=np.intp)
+        slot[self.fixed_list] = np.arange(self.fixed_list.size)
+        fr = self.fixed_rows
+        fs = slot[self.cols[fr]]  # (r, k): the fixed slot of each coefficient, or -1
+        ri, ka, kb = np.nonzero((fc[fr][:, :, None] >= 0) & (fs[:, None, :] >= 0))
+        self._c_row, self._c_free, self._c_fixed = fr[ri], ka, kb
+        self._c_flat = fc[fr][ri, ka] * self.fixed_list.size + fs[ri, kb]
         self._vals: NDArray[np.complex128] | None = None
         self._weights: FloatArray | None = None
         self._chol: NDArray[np.complex128] | None = None
         self._prod: NDArray[np.complex128] = np.zeros((0, 0), dtype=np.complex128)
         self._adjoint: NDArray[np.complex128] = np.zeros(0, dtype=np.complex128)
+        self._coupling: NDArray[np.complex128] = np.zeros((0, 0), dtype=np.complex128)
 
     def factor(self, vals: NDArray[np.complex128], weights: FloatArray) -> None:
         """Factor ``A^H W A`` for coefficients ``vals`` (m, k) and row weights ``weights``
         (m,); nothing to do when both are the ones last factored."""
         if self._vals is not vals:
-            va, vb = vals[:, self.pair_a], vals[:, self.pair_b]
-            prod = np.conj(va) * vb
-            prod = np.where(self.swap, np.conj(prod), prod)
-            self._prod = np.where(self.twice, 2 * prod.real + 0j, prod)
+            # (np.take: C-ordered, so that the flat views below are views)
+            prod = np.conj(np.take(vals, self.pair_a, axis=1))
+            prod *= np.take(vals, self.pair_b, axis=1)
+            np.conjugate(prod, out=prod, where=self.swap)
+            if self.twice_at.size:
+                twice = prod.reshape(-1)[self.twice_at]
+                prod.reshape(-1)[self.twice_at] = 2 * twice.real
+            self._prod = prod
             self._vals = vals
         elif self._weights is not None and np.array_equal(self._weights, weights):
             return
@@ -249,25 +265,37 @@ class ComplexLeastSquares:
         except np.linalg.LinAlgError:
             raise WarpError("the warp system is singular (the mesh is disconnected?)") from None
         self._weights = np.array(weights, copy=True)
-        self._adjoint = np.asarray(
-            np.conj(vals[self.ok_rows]) * self._weights[self.entry_rows], dtype=np.complex128
-        )
+        self._adjoint = np.conj(np.take(vals, self.entry_at))
+        self._adjoint *= self._weights[self.entry_rows]
+        # (A_free^H W A_fixed): what the fixed unknowns' values take from the right side
+        r = self._c_row
+        terms = np.conj(vals[r, self._c_free]) * self._weights[r] * vals[r, self._c_fixed]
+        size = self.nf * self.fixed_list.size
+        self._coupling = (
+            np.bincount(self._c_flat, terms.real, size)
+            + 1j * np.bincount(self._c_flat, terms.imag, size)
+        ).reshape(self.nf, self.fixed_list.size)
 
     def solve(
-        self, const: NDArray[np.complex128], z_fixed: NDArray[np.complex128]
+        self,
+        const: NDArray[np.complex128],
+        z_fixed: NDArray[np.complex128],
+        zero_rows: int = 0,
     ) -> NDArray[np.complex128]:
         """Minimiser (n,) for the last factored coefficients and weights and the
-        constants ``const`` (m,); the fixed unknowns are copied from ``z_fixed`` (n,)."""
+        constants ``const`` (m,); the fixed unknowns are copied from ``z_fixed`` (n,).
+        ``zero_rows``: the caller's word that ``const[:zero_rows]`` is zero (those rows
+        then add nothing to the right side, and are not read)."""
         if self._chol is None or self._vals is None or self._weights is None:
             raise WarpError("the warp system has not been factored")
-        if self.fixed_rows.size:
-            zf = np.append(np.where(self.fixed, z_fixed, 0.0), 0.0)
-            r = self.fixed_rows
-            const = const.copy()
-            const[r] -= np.sum(self._vals[r] * zf[self.cols[r]], axis=1)
-        contrib = self._adjoint * const[self.entry_rows]
-        idx = self.entry_free
+        # the entries are in row order: those of the first zero_rows rows come first
+        first = int(np.searchsorted(self.entry_rows, zero_rows)) if zero_rows else 0
+        rows = self.entry_rows[first:]
+        contrib = self._adjoint[first:] * const[rows]
+        idx = self.entry_free[first:]
         rhs = np.bincount(idx, contrib.real, self.nf) + 1j * np.bincount(idx, contrib.imag, self.nf)
+        if self.fixed_list.size:
+            rhs -= self._coupling @ z_fixed[self.fixed_list]
         zs = scipy.linalg.cho_solve_banded((self._chol, False), rhs, check_finite=False)
         z = np.array(z_fixed, dtype=np.complex128, copy=True)
         z[~self.fixed] = zs

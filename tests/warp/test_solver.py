@@ -136,6 +136,12 @@ def test_complex_solve_matches_dense_least_squares(seed: int, n: int, k: int, pi
         sw[:, None] * a[:, ~fixed], sw * (2 * const - (const - b)), rcond=None
     )
     np.testing.assert_allclose(z2[~fixed], zd2, rtol=1e-7, atol=1e-9)
+    # rows whose constant is zero may be skipped on the caller's word (zero_rows)
+    head = int(rng.integers(0, m + n + 1))
+    c3 = np.where(np.arange(m + n) < head, 0.0, const)
+    np.testing.assert_array_equal(
+        system.solve(c3, z_fixed, zero_rows=head), system.solve(c3, z_fixed)
+    )
 
 
 def test_anderson_reaches_the_same_fixed_point_sooner() -> None:
