@@ -220,7 +220,12 @@ class ComplexLeastSquares:
         band = int(np.max(np.where(ok, hi - lo, 0))) if ok.any() else 0
         self.band = band
         self.dump = (band + 1) * self.nf
-        self.flat = np.where(ok, (band + lo - hi) * self.nf + hi, self.dump).ravel()
+        flat = np.where(ok, (band + lo - hi) * self.nf + hi, self.dump).ravel()
+        # the coefficient pairs that land in the band, in (row, pair) order: where, their
+        # row and their place in the band's storage
+        self.used_at = np.flatnonzero(flat < self.dump)
+        self.used_rows = self.used_at // self.pair_a.size
+        self.used_flat = flat[self.used_at]
         # the coupling of the free unknowns to the fixed ones: per coefficient pair of a
         # fixed-seeing row, where its product lands in the (nf, n_fixed) matrix
         self.fixed_list = np.flatnonzero(fixed)
@@ -234,7 +239,7 @@ class ComplexLeastSquares:
         self._vals: NDArray[np.complex128] | None = None
         self._weights: FloatArray | None = None
         self._chol: NDArray[np.complex128] | None = None
-        self._prod: NDArray[np.complex128] = np.zeros((0, 0), dtype=np.complex128)
+        self._prod: tuple[FloatArray, FloatArray] = (np.zeros(0), np.zeros(0))
         self._adjoint: NDArray[np.complex128] = np.zeros(0, dtype=np.complex128)
         self._coupling: NDArray[np.complex128] = np.zeros((0, 0), dtype=np.complex128)
 
@@ -249,18 +254,19 @@ class ComplexLeastSquares:
             if self.twice_at.size:
                 twice = prod.reshape(-1)[self.twice_at]
                 prod.reshape(-1)[self.twice_at] = 2 * twice.real
-            self._prod = prod
+            used = np.take(prod, self.used_at)  # the products that land in the band
+            self._prod = (np.ascontiguousarray(used.real), np.ascontiguousarray(used.imag))
             self._vals = vals
         elif self._weights is not None and np.array_equal(self._weights, weights):
             return
-        p = self._prod * weights[:, None]
-        size = self.dump + 1
-        ab = np.bincount(self.flat, p.real.ravel(), size) + 1j * np.bincount(
-            self.flat, p.imag.ravel(), size
-        )
+        w = np.take(weights, self.used_rows)
+        size = self.dump
+        ab = np.empty(size, dtype=np.complex128)
+        ab.real = np.bincount(self.used_flat, self._prod[0] * w, size)
+        ab.imag = np.bincount(self.used_flat, self._prod[1] * w, size)
         try:
             self._chol = scipy.linalg.cholesky_banded(
-                ab[: self.dump].reshape(self.band + 1, self.nf), lower=False, check_finite=False
+                ab.reshape(self.band + 1, self.nf), lower=False, check_finite=False
             )
         except np.linalg.LinAlgError:
             raise WarpError("the warp system is singular (the mesh is disconnected?)") from None
