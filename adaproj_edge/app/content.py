@@ -73,25 +73,32 @@ class SaliencyMaps:
         self._model = model
         self._mapper: ContentMapper | None = None
 
+    def model(self) -> SaliencyModel:
+        """The one saliency model (session) of stills and clips, loaded at first use."""
+        if self._model is None:
+            self._model = SaliencyModel()
+        return self._model
+
     def __call__(
         self, name: str, image: Image, mask: Float32Array | None, threshold: float
     ) -> ContentMap:
         """The content map of item ``name``."""
         if self._mapper is None:
-            self._mapper = ContentMapper(self._model or SaliencyModel(), detector=FaceDetector())
+            self._mapper = ContentMapper(self.model(), detector=FaceDetector())
         self._mapper.set_content(name, image)
         self._mapper.set_mask_values(name, mask)
         m = self._mapper.content_map(name)
         return ContentMap(m.values, m.content_size, threshold, m.faces)
 
     def clip_maps(self, item: Item) -> TemporalContentMap:
-        """The content maps of clip ``item``'s frames: this model (shared), faces
-        detected and tracked, the item's mask."""
-        if self._model is None:
-            self._model = SaliencyModel()
+        """The content maps of clip ``item``'s frames: this model (shared, and warmed
+        here, so that the clip's first frames do not pay the session's first runs),
+        faces detected and tracked, the item's mask."""
+        model = self.model()
+        model.warm()
         return TemporalContentMap(
             item.size,
-            self._model,
+            model,
             mask=item.mask,
             tracker=FaceTracker(FaceDetector()),
             threshold=item.settings.threshold,

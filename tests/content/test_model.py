@@ -111,3 +111,22 @@ def test_normalise_handles_constant_and_nonfinite_maps() -> None:
     assert not normalise(np.full((3, 4), 7.0)).any()
     out = normalise(np.array([[np.nan, 1.0], [3.0, np.inf]]))
     assert out.min() == 0.0 and out.max() == 1.0 and np.isfinite(out).all()
+
+
+def test_warm_runs_the_session_twice_once_and_changes_no_result() -> None:
+    """``warm`` makes the session's first runs on a blank input, once per model."""
+    model = SaliencyModel()
+    img = _images()["chelsea"]
+    cold = SaliencyModel().predict(img)
+    runs: list[tuple[int, ...]] = []
+    run = model.run
+
+    def counted(tensor: np.ndarray) -> np.ndarray:
+        runs.append(tensor.shape)
+        return run(tensor)
+
+    model.run = counted  # type: ignore[method-assign]
+    model.warm()
+    model.warm()
+    assert runs == [(1, 3, *model.input_size)] * 2
+    np.testing.assert_array_equal(model.predict(img), cold)
