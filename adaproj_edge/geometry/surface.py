@@ -89,10 +89,12 @@ class Surface:
         node is invalid or ``uv`` is outside the frame.
         """
         uv = np.asarray(uv, dtype=np.float64)
+        shape = uv.shape[:-1]
+        uv = uv.reshape(-1, 2)
         sx, sy = self.lattice_scale()
         h, w = self.shape
-        gx = uv[..., 0] / sx
-        gy = uv[..., 1] / sy
+        gx = uv[:, 0] / sx
+        gy = uv[:, 1] / sy
         inside = (gx >= -0.5) & (gx <= w - 0.5) & (gy >= -0.5) & (gy <= h - 0.5)
         gx = np.clip(gx, 0.0, w - 1.0)
         gy = np.clip(gy, 0.0, h - 1.0)
@@ -100,24 +102,27 @@ class Surface:
         y0 = np.minimum(np.floor(gy).astype(np.intp), h - 2)
         fx = gx - x0
         fy = gy - y0
-        z = self.points[..., 2].astype(np.float64)
-        num = np.zeros(gx.shape)
-        den = np.zeros(gx.shape)
-        for dy, dx, wgt in (
-            (0, 0, (1 - fx) * (1 - fy)),
-            (0, 1, fx * (1 - fy)),
-            (1, 0, (1 - fx) * fy),
-            (1, 1, fx * fy),
-        ):
-            zz = z[y0 + dy, x0 + dx]
-            ok = np.isfinite(zz) & (wgt > 1e-9)
-            num += np.where(ok, zz * wgt, 0.0)
-            den += np.where(ok, wgt, 0.0)
-        nearest = z[np.rint(gy).astype(np.intp), np.rint(gx).astype(np.intp)]
+        # the four neighbours' depths (4, N) at once, gathered from the lattice
+        at = 3 * (y0 * w + x0) + 2
+        zz = np.take(self.points.reshape(-1), np.array([[0], [3], [3 * w], [3 * w + 3]]) + at)
+        gx1, gy1 = 1 - fx, 1 - fy
+        wgt = np.stack([gx1 * gy1, fx * gy1, gx1 * fy, fx * fy])
+        seen = np.isfinite(zz)
+        ok = seen & (wgt > 1e-9)
+        # summed in the neighbours' order (as adding them one by one)
+        num = np.where(ok, zz * wgt, 0.0).sum(axis=0)
+        den = np.where(ok, wgt, 0.0).sum(axis=0)
+        bad = ~inside | (den <= 0)
+        # the nearest node, one of the four, must be valid (checked where one is not)
+        some = np.flatnonzero(~seen.all(axis=0))
+        if some.size:
+            nx = np.rint(gx[some]).astype(np.intp) - x0[some]
+            ny = np.rint(gy[some]).astype(np.intp) - y0[some]
+            bad[some] |= ~seen[2 * ny + nx, some]
         with np.errstate(invalid="ignore", divide="ignore"):
-            out = num / den
-        out[~inside | ~np.isfinite(nearest) | (den <= 0)] = np.nan
-        return out
+            out: FloatArray = num / den
+        out[bad] = np.nan
+        return out.reshape(shape)
 
     def points_at(self, uv: FloatArray) -> FloatArray:
         """3D points (..., 3) on the rays of pixels ``uv`` (..., 2); NaN where none."""

@@ -82,16 +82,56 @@ def conformal_coords(p: FloatArray) -> FloatArray:
     -------
     (T, 3, 2) array of (alpha, beta).
     """
-    n = triangle_normals(p)
-    out = np.empty((*p.shape[:2], 2))
-    for k in range(3):
-        p1, p2, p3 = p[:, k], p[:, (k + 1) % 3], p[:, (k + 2) % 3]
-        e = p3 - p2
-        d = p1 - p2
-        ee = np.sum(e * e, axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            out[:, k, 0] = np.sum(d * e, axis=1) / ee
-            out[:, k, 1] = np.sum(d * cross(n, e), axis=1) / ee
+    return triangle_shapes(p)[0]
+
+
+def triangle_shapes(p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """What the warp needs of the shapes of triangles ``p`` (T, 3, 3), at once.
+
+    Returns
+    -------
+    coords : (T, 3, 2) the :func:`conformal_coords`.
+    sides : (T, 3) side lengths, side k from corner k to corner k + 1.
+    planar : (T, 3, 2) each triangle in a 2D frame of its own plane: corner 0 at the
+        origin, corner 1 on the +x axis, corner 2 at y >= 0.
+    """
+    # component-first planes (xyz, corner, T): every sum below is over the components,
+    # in their order, as np.sum over a (..., 3) axis adds them (the same values)
+    q = np.moveaxis(np.asarray(p, dtype=np.float64), (0, 1, 2), (2, 1, 0))
+    t = q.shape[2]
+    e1, e2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+    n = -_cross_first(e1, e2)
+    following = q[:, [1, 2, 0]]
+    e = q[:, [2, 0, 1]] - following  # role k: P3 - P2
+    d = q - following  # role k: P1 - P2
+    side = following - q  # corner k + 1 - corner k: a side's length either way round
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n = n / np.sqrt(_dot_first(n, n))
+        ee = _dot_first(e, e)
+        coords = np.empty((t, 3, 2))
+        coords[:, :, 0] = (_dot_first(d, e) / ee).T
+        coords[:, :, 1] = (_dot_first(d, _cross_first(n[:, None], e)) / ee).T
+        l1 = np.sqrt(_dot_first(e1, e1))
+        x2 = _dot_first(e1, e2) / l1
+    planar = np.zeros((t, 3, 2))
+    planar[:, 1, 0] = l1
+    planar[:, 2, 0] = x2
+    planar[:, 2, 1] = np.sqrt(np.maximum(_dot_first(e2, e2) - x2 * x2, 0.0))
+    sides: FloatArray = np.sqrt(_dot_first(side, side)).T
+    return coords, sides, planar
+
+
+def _dot_first(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Dot products of component-first (3, ...) arrays, x + y + z in that order."""
+    out: FloatArray = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    return out
+
+
+def _cross_first(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Cross products of component-first (3, ...) arrays (as :func:`cross`)."""
+    out: FloatArray = np.stack(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
     return out
 
 

@@ -17,9 +17,9 @@ from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.creases import crease_probes, unfold_creases
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import (
-    conformal_coords,
     grid_triangles,
     triangle_normals,
+    triangle_shapes,
     unique_edges,
 )
 from adaproj_edge.warp.warpmap import Grid
@@ -247,32 +247,21 @@ class MeshGeometry:
         cand = topo.cand
         unfolding = unfold_creases(surface, uv[cand], cand, pts, probes[topo.rows])
         tri_pts = unfolding.points
-        coords = conformal_coords(tri_pts)
-        # edge lengths as the (unfolded) triangles have them; an edge shared by two
-        # triangles gets the mean of their two values
-        tri_len = np.linalg.norm(tri_pts - np.roll(tri_pts, -1, axis=1), axis=2)  # edge k: k->k+1
+        coords, tri_len, shapes = triangle_shapes(tri_pts)
+        # edge lengths as the (unfolded) triangles have them (side k: k -> k + 1); an
+        # edge shared by two triangles gets the mean of their two values
         n_edges = topo.edges.shape[0]
         sums = np.bincount(topo.inverse, weights=tri_len.T.ravel(), minlength=n_edges)
         counts = np.bincount(topo.inverse, minlength=n_edges)
         curved = unfolding.folded & (unfolding.softness > 0)
-        return cls(grid, grid_uv, pts, topo, coords, sums / counts, planar_shapes(tri_pts), curved)
+        return cls(grid, grid_uv, pts, topo, coords, sums / counts, shapes, curved)
 
 
 def planar_shapes(tri_pts: FloatArray) -> FloatArray:
     """Triangles (T, 3, 3) in 2D frames of their own planes (T, 3, 2): corner 0 at the
     origin, corner 1 on the +x axis, corner 2 on the side the content's y axis has
     (content y points down, as for the projector's pixels)."""
-    e1 = tri_pts[:, 1] - tri_pts[:, 0]
-    e2 = tri_pts[:, 2] - tri_pts[:, 0]
-    l1 = np.linalg.norm(e1, axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        x2 = np.sum(e1 * e2, axis=1) / l1
-    y2 = np.sqrt(np.maximum(np.sum(e2 * e2, axis=1) - x2 * x2, 0.0))
-    out = np.zeros((tri_pts.shape[0], 3, 2))
-    out[:, 1, 0] = l1
-    out[:, 2, 0] = x2
-    out[:, 2, 1] = y2
-    return out
+    return triangle_shapes(tri_pts)[2]
 
 
 def _largest_component(all_tris: IntArray, rows: IntArray, n_vertices: int) -> IntArray:
