@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.geometry.triangles import cross, triangle_normals
+from adaproj_edge.geometry.triangles import corners_first, planes_first
 
 ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, of a crease
 CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this make a crease
@@ -105,29 +105,47 @@ def unfold_creases(
     (N, 3)), whose pixel corners are ``tri_uv`` (T, 3, 2). ``probes`` (T, 4, 3): the
     surface at their :func:`crease_probes`, when the caller has sampled it already."""
     tri_pts = points[tris]
+    xs = surface.points_at(crease_probes(tri_uv)) if probes is None else probes  # (T, 4, 3)
+    normals, area2 = planes_first(corners_first(tri_pts))
+    return unfold_measured(tris, points, tri_pts, normals, area2, xs.transpose(2, 1, 0))
+
+
+def unfold_measured(
+    tris: IntArray,
+    points: FloatArray,
+    tri_pts: FloatArray,
+    normals: FloatArray,
+    area2: FloatArray,
+    probes: FloatArray,
+) -> Unfolding:
+    """:func:`unfold_creases` of triangles whose corners ``tri_pts`` (T, 3, 3), unit
+    normals (3, T) and twice the areas (T,) (:func:`~adaproj_edge.geometry.triangles.
+    planes_first`) and surface at the probes (3, 4, T) (component-first) are known."""
     t_count = tris.shape[0]
     out = tri_pts.copy()
     nan3 = np.full((t_count, 3), np.nan)
     unfolding = Unfolding(
         out,
         np.zeros(t_count, dtype=bool),
+        nan3,
         nan3.copy(),
         nan3.copy(),
         nan3.copy(),
-        nan3.copy(),
-        np.tile(np.eye(3), (t_count, 1, 1)),
+        np.broadcast_to(np.eye(3), (t_count, 3, 3)).copy(),
         np.zeros((t_count, 3)),
         np.zeros(t_count),
     )
-    n = triangle_normals(tri_pts)
-    size = np.sqrt(
-        np.linalg.norm(cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0]), axis=1)
+    size = np.sqrt(area2)
+    # the probes' distances (4, T) to their triangle's plane
+    dist = np.abs(
+        (probes[0] - tri_pts[None, :, 0, 0]) * normals[0]
+        + (probes[1] - tri_pts[None, :, 0, 1]) * normals[1]
+        + (probes[2] - tri_pts[None, :, 0, 2]) * normals[2]
     )
-    xs = surface.points_at(crease_probes(tri_uv)) if probes is None else probes  # (T, 4, 3)
-    dist = np.abs(np.sum((xs - tri_pts[:, :1]) * n[:, None, :], axis=2))
-    rough = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=1) > ROUGH * size
+    rough = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=0) > ROUGH * size
     if not np.any(rough):
         return unfolding
+    n, xs, dist = normals.T, probes.transpose(2, 1, 0), dist.T  # (T, 3), (T, 4, 3), (T, 4)
     # the plane of each vertex: area-weighted normal of its smooth triangles
     smooth = ~rough & np.all(np.isfinite(n), axis=1)
     weighted = n[smooth] * size[smooth, None] ** 2  # (S, 3), added at each corner

@@ -14,11 +14,12 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
-from adaproj_edge.geometry.creases import crease_probes, unfold_creases
+from adaproj_edge.geometry.creases import unfold_measured
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import (
     grid_triangles,
-    triangle_normals,
+    planes_first,
+    shapes_first,
     triangle_shapes,
     unique_edges,
 )
@@ -218,20 +219,23 @@ class MeshGeometry:
         elif grid_uv.shape != (grid.rows + 1, grid.cols + 1, 2):
             raise ValueError(f"grid_uv {grid_uv.shape} does not fit grid {grid}")
         all_tris = grid_triangles(grid.rows, grid.cols)
+        t_all = all_tris.shape[0]
         uv = grid_uv.reshape(-1, 2)
         # the surface at the vertices and at the crease probes of every triangle, at once
-        sampled = surface.points_at(
-            np.concatenate([uv, crease_probes(uv[all_tris]).reshape(-1, 2)])
-        )
+        sampled = surface.points_at(np.concatenate([uv, _probes(uv, all_tris)]))
         pts = sampled[: uv.shape[0]]
-        probes = sampled[uv.shape[0] :].reshape(all_tris.shape[0], -1, 3)
-        ok = np.all(np.isfinite(pts[all_tris]).all(axis=2), axis=1)
-        normals = triangle_normals(pts[all_tris[ok]])
+        probes = sampled[uv.shape[0] :].T.reshape(3, 4, t_all)  # component-first
+        # every grid triangle's corners, normal and area (NaN where not all seen)
+        corners = np.take(pts.T, all_tris.T, axis=1)  # (3, 3, T) component-first
+        normals, area2 = planes_first(corners)
         # A triangle must face the projector (it was seen) and not be degenerate.
-        facing = np.all(np.isfinite(normals), axis=1)
-        facing &= np.sum(normals * pts[all_tris[ok]].mean(axis=1), axis=1) < 0
-        keep = np.zeros(all_tris.shape[0], dtype=bool)
-        keep[np.flatnonzero(ok)[facing]] = True
+        centre = (corners[:, 0] + corners[:, 1] + corners[:, 2]) / 3
+        with np.errstate(invalid="ignore"):
+            keep = (
+                (normals[0] * centre[0] + normals[1] * centre[1] + normals[2] * centre[2] < 0)
+                & np.isfinite(normals).all(axis=0)
+                & np.isfinite(corners).all(axis=(0, 1))
+            )
         if keep.sum() < MIN_TRIANGLES:
             raise WarpError(
                 f"only {int(keep.sum())} grid triangles meet the surface; point the projector "
@@ -244,17 +248,35 @@ class MeshGeometry:
 
         key = f"{grid.cols}x{grid.rows}:".encode() + np.packbits(keep).tobytes()
         topo = make() if cache is None else cache.topology(key, make)
-        cand = topo.cand
-        unfolding = unfold_creases(surface, uv[cand], cand, pts, probes[topo.rows])
-        tri_pts = unfolding.points
-        coords, tri_len, shapes = triangle_shapes(tri_pts)
+        rows = topo.rows
+        unfolding = unfold_measured(
+            topo.cand, pts, pts[topo.cand], normals[:, rows], area2[rows], probes[:, :, rows]
+        )
+        mine = corners[:, :, rows]
+        folded = np.flatnonzero(unfolding.folded)
+        if folded.size:
+            mine[:, :, folded] = unfolding.points[folded].transpose(2, 1, 0)
+        coords, sides, shapes = shapes_first(mine)
         # edge lengths as the (unfolded) triangles have them (side k: k -> k + 1); an
         # edge shared by two triangles gets the mean of their two values
         n_edges = topo.edges.shape[0]
-        sums = np.bincount(topo.inverse, weights=tri_len.T.ravel(), minlength=n_edges)
+        sums = np.bincount(topo.inverse, weights=sides.ravel(), minlength=n_edges)
         counts = np.bincount(topo.inverse, minlength=n_edges)
         curved = unfolding.folded & (unfolding.softness > 0)
         return cls(grid, grid_uv, pts, topo, coords, sums / counts, shapes, curved)
+
+
+def _probes(uv: FloatArray, tris: IntArray) -> FloatArray:
+    """The :func:`~adaproj_edge.geometry.creases.crease_probes` of triangles ``tris``
+    (T, 3) of vertices ``uv`` (N, 2), probe-major: (4 T, 2), probe k of triangle t at
+    ``k T + t``."""
+    c = np.take(uv.T, tris.T, axis=1)  # (2, 3, T)
+    out = np.empty((2, 4, tris.shape[0]))
+    out[:, 0] = (c[:, 0] + c[:, 1]) / 2
+    out[:, 1] = (c[:, 1] + c[:, 2]) / 2
+    out[:, 2] = (c[:, 2] + c[:, 0]) / 2
+    out[:, 3] = (c[:, 0] + c[:, 1] + c[:, 2]) / 3
+    return out.reshape(2, -1).T
 
 
 def planar_shapes(tri_pts: FloatArray) -> FloatArray:
