@@ -8,13 +8,21 @@ e = bottom-right. In pixel coordinates (y down) both are positively oriented.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from adaproj_edge.arrays import FloatArray, IntArray
 
 
 def grid_triangles(rows: int, cols: int) -> IntArray:
-    """Vertex indices (2 * rows * cols, 3) of the grid's triangles, cell by cell."""
+    """Vertex indices (2 * rows * cols, 3) of the grid's triangles, cell by cell
+    (read-only: made once per grid size)."""
+    return _grid_triangles(int(rows), int(cols))
+
+
+@functools.lru_cache(maxsize=16)
+def _grid_triangles(rows: int, cols: int) -> IntArray:
     r, c = np.mgrid[0:rows, 0:cols]
     a = (r * (cols + 1) + c).ravel()
     b = a + 1
@@ -23,7 +31,9 @@ def grid_triangles(rows: int, cols: int) -> IntArray:
     tris = np.empty((rows * cols, 2, 3), dtype=np.intp)
     tris[:, 0] = np.stack([a, b, e], axis=1)
     tris[:, 1] = np.stack([a, e, d], axis=1)
-    return tris.reshape(-1, 3)
+    out = tris.reshape(-1, 3)
+    out.flags.writeable = False
+    return out
 
 
 def grid_edges(rows: int, cols: int) -> IntArray:

@@ -144,25 +144,28 @@ def bends(
         bx = np.pad(np.fmin(np.fmin(bx[:, :-2], bx[:, 1:-1]), bx[:, 2:]), ((0, 0), (1, 1)))
         by = np.pad(np.fmin(np.fmin(by[:-2], by[1:-1]), by[2:]), ((1, 1), (0, 0)))
     cols, rows = grid_uv[0, :, 0], grid_uv[:, 0, 1]
-    ci = np.clip(np.searchsorted(cols, xs[1:-1], side="right") - 1, 0, cols.size - 2)
-    ri = np.clip(np.searchsorted(rows, ys[1:-1], side="right") - 1, 0, rows.size - 2)
+    n_cols, n_rows = cols.size - 1, rows.size - 1
+    ci = np.clip(np.searchsorted(cols, xs[1:-1], side="right") - 1, 0, n_cols - 1)
+    ri = np.clip(np.searchsorted(rows, ys[1:-1], side="right") - 1, 0, n_rows - 1)
     # the cell's size along x (y) in samples: its width (height) over the sample step
     along_x = bx * (np.diff(cols)[ci] / (kx * sx))[None, :]
     along_y = by * (np.diff(rows)[ri] / (ky * sy))[:, None]
+    if not along_x.size:
+        return np.zeros((n_rows, n_cols)), np.zeros((n_rows, n_cols))
+    # samples of a cell are contiguous along both axes: a max per block, 0 in the cells
+    # that hold no sample
+    c_start = np.minimum(np.searchsorted(ci, np.arange(n_cols)), along_x.shape[1] - 1)
+    r_start = np.minimum(np.searchsorted(ri, np.arange(n_rows)), along_x.shape[0] - 1)
+    has_c, has_r = np.zeros(n_cols, bool), np.zeros(n_rows, bool)
+    has_c[ci] = True
+    has_r[ri] = True
+    has = has_r[:, None] & has_c[None, :]
     out = []
     for per in (along_x, along_y):
-        worst = np.zeros((rows.size - 1, cols.size - 1))
-        # samples of a cell are contiguous along both axes: a max per block
         per = np.where(np.isfinite(per), per, 0.0)
-        c_start = np.searchsorted(ci, np.arange(cols.size - 1))
-        r_start = np.searchsorted(ri, np.arange(rows.size - 1))
-        has_c = np.isin(np.arange(cols.size - 1), ci)
-        has_r = np.isin(np.arange(rows.size - 1), ri)
-        if per.size:
-            block = np.maximum.reduceat(per, np.minimum(c_start, per.shape[1] - 1), axis=1)
-            block = np.maximum.reduceat(block, np.minimum(r_start, per.shape[0] - 1), axis=0)
-            worst = np.where(has_r[:, None] & has_c[None, :], block, 0.0)
-        out.append(worst)
+        block = np.maximum.reduceat(per, c_start, axis=1)
+        block = np.maximum.reduceat(block, r_start, axis=0)
+        out.append(np.where(has, block, 0.0))
     return out[0], out[1]
 
 
@@ -174,14 +177,20 @@ def _limits(bx: FloatArray, by: FloatArray) -> FloatArray:
 
 
 def refine_grid(
-    surface: Surface, grid: Grid, curved: IntArray | None = None, budget: int = BUDGET
+    surface: Surface,
+    grid: Grid,
+    curved: IntArray | None = None,
+    budget: int = BUDGET,
+    base: FloatArray | None = None,
 ) -> Refinement:
     """The lines of ``grid``, with columns and rows split where ``surface`` needs it.
 
     ``curved`` : (rows * cols,) cell indices a curved crease crosses (a mesh of the base
     grid knows them: :attr:`~adaproj_edge.warp.mesh.MeshGeometry.curved_cells`).
+    ``base`` : the grid's vertices (:meth:`Grid.vertices`), when the caller has them.
     """
-    base = grid.vertices(surface.projector)
+    if base is None:
+        base = grid.vertices(surface.projector)
     none = Refinement(
         base[0, :, 0], base[:, 0, 1], np.ones(grid.cols, np.intp), np.ones(grid.rows, np.intp)
     )
@@ -233,7 +242,7 @@ def adaptive_mesh(
     mesh = MeshGeometry.build(surface, grid, cache)
     if not refine:
         return mesh, {}
-    refinement = refine_grid(surface, grid, mesh.curved_cells)
+    refinement = refine_grid(surface, grid, mesh.curved_cells, base=mesh.grid_uv)
     if not refinement.refined:
         return mesh, {}
     mesh = MeshGeometry.build(surface, refinement.grid, cache, refinement.grid_uv)
