@@ -130,16 +130,19 @@ def planes_first(q: FloatArray) -> tuple[FloatArray, FloatArray]:
     return unit, area2
 
 
-def shapes_first(q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+def shapes_first(
+    q: FloatArray, normals: FloatArray | None = None
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """:func:`triangle_shapes` of component-first triangles ``q`` (3, 3, T), with the
-    side lengths component-first too (3, T)."""
+    side lengths component-first too (3, T); ``normals`` (3, T): their
+    :func:`planes_first` normals, when the caller has them."""
     t = q.shape[2]
     e1, e2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
     following = q[:, [1, 2, 0]]
     e = q[:, [2, 0, 1]] - following  # role k: P3 - P2
     d = q - following  # role k: P1 - P2
     side = following - q  # corner k + 1 - corner k: a side's length either way round
-    n = planes_first(q)[0]
+    n = planes_first(q)[0] if normals is None else normals
     with np.errstate(invalid="ignore", divide="ignore"):
         ee = _dot_first(e, e)
         coords = np.empty((t, 3, 2))

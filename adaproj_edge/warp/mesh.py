@@ -51,17 +51,25 @@ class Topology:
     memo: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
-    def from_triangles(cls, cand: IntArray, rows: IntArray, n_vertices: int) -> Topology:
+    def from_triangles(
+        cls, cand: IntArray, rows: IntArray, n_vertices: int, grid_cols: int | None = None
+    ) -> Topology:
         """The topology of triangles ``cand`` (T, 3) (grid vertex indices; ``rows`` (T,)
-        their indices among all grid triangles) of a grid of ``n_vertices``."""
+        their indices among all grid triangles) of a grid of ``n_vertices``.
+
+        ``grid_cols``: the triangles are those of :func:`grid_triangles` for a grid of
+        that many columns, whose sides are known without sorting them."""
         used = np.zeros(n_vertices, dtype=bool)
         used[cand.ravel()] = True
         index = np.full(n_vertices, -1, dtype=np.intp)
         verts = np.flatnonzero(used)
         index[verts] = np.arange(verts.size)
         tris = index[cand]
-        e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
-        edges, inverse, counts = unique_edges(e, max(int(verts.size), 1))
+        if grid_cols is None:
+            e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+            edges, inverse, counts = unique_edges(e, max(int(verts.size), 1))
+        else:
+            edges, inverse, counts = _grid_sides(cand, index, grid_cols, n_vertices)
         return cls(cand, rows, used, index, verts, tris, edges, inverse, edges[counts == 1])
 
     def remember(self, name: str, make: Callable[[], T]) -> T:
@@ -244,7 +252,7 @@ class MeshGeometry:
 
         def make() -> Topology:
             rows = _largest_component(all_tris, np.flatnonzero(keep), pts.shape[0])
-            return Topology.from_triangles(all_tris[rows], rows, pts.shape[0])
+            return Topology.from_triangles(all_tris[rows], rows, pts.shape[0], grid.cols)
 
         key = f"{grid.cols}x{grid.rows}:".encode() + np.packbits(keep).tobytes()
         topo = make() if cache is None else cache.topology(key, make)
@@ -252,11 +260,12 @@ class MeshGeometry:
         unfolding = unfold_measured(
             topo.cand, pts, pts[topo.cand], normals[:, rows], area2[rows], probes[:, :, rows]
         )
-        mine = corners[:, :, rows]
+        mine, mine_n = corners[:, :, rows], normals[:, rows]
         folded = np.flatnonzero(unfolding.folded)
-        if folded.size:
+        if folded.size:  # their unfolded corners, and planes
             mine[:, :, folded] = unfolding.points[folded].transpose(2, 1, 0)
-        coords, sides, shapes = shapes_first(mine)
+            mine_n[:, folded] = planes_first(mine[:, :, folded])[0]
+        coords, sides, shapes = shapes_first(mine, mine_n)
         # edge lengths as the (unfolded) triangles have them (side k: k -> k + 1); an
         # edge shared by two triangles gets the mean of their two values
         n_edges = topo.edges.shape[0]
@@ -284,6 +293,33 @@ def planar_shapes(tri_pts: FloatArray) -> FloatArray:
     origin, corner 1 on the +x axis, corner 2 on the side the content's y axis has
     (content y points down, as for the projector's pixels)."""
     return triangle_shapes(tri_pts)[2]
+
+
+def _grid_sides(
+    cand: IntArray, index: IntArray, cols: int, n_vertices: int
+) -> tuple[IntArray, IntArray, IntArray]:
+    """:func:`unique_edges` of the sides (k -> k + 1, k-major) of grid triangles ``cand``
+    (T, 3) (grid vertex indices) of a grid of ``cols`` columns, whose vertices have the
+    compact indices ``index`` (N,) (increasing with the grid index).
+
+    A grid triangle's side from grid vertex ``lo`` (the lower) is horizontal, vertical or
+    diagonal (``hi - lo`` is 1, cols + 1 or cols + 2): its number ``3 lo + kind`` orders
+    the sides as their compact (lo, hi) pairs do, so marking the numbers present (no sort)
+    gives the sorted unique edges."""
+    a = cand.T
+    b = a[[1, 2, 0]]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    span = hi - lo
+    number = (3 * lo + (span > 1) + (span > cols + 1)).ravel()
+    present = np.zeros(3 * n_vertices, dtype=bool)
+    present[number] = True
+    inverse = (np.cumsum(present) - 1)[number]
+    found = np.flatnonzero(present)
+    low = found // 3
+    high = low + np.array([1, cols + 1, cols + 2])[found % 3]
+    edges = np.stack([index[low], index[high]], axis=1)
+    counts = np.bincount(inverse, minlength=found.size)
+    return edges, inverse, counts
 
 
 def _largest_component(all_tris: IntArray, rows: IntArray, n_vertices: int) -> IntArray:
