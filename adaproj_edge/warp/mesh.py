@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -15,6 +16,7 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.creases import unfold_measured
+from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import (
     grid_triangles,
@@ -223,16 +225,16 @@ class MeshGeometry:
         ``grid_uv`` (rows + 1, cols + 1, 2) places the vertices elsewhere than
         :meth:`Grid.vertices` (a coarse grid on a subset of a fine grid's vertices)."""
         if grid_uv is None:
-            grid_uv = grid.vertices(surface.projector)
+            grid_uv = _vertices(grid, surface.projector)
         elif grid_uv.shape != (grid.rows + 1, grid.cols + 1, 2):
             raise ValueError(f"grid_uv {grid_uv.shape} does not fit grid {grid}")
         all_tris = grid_triangles(grid.rows, grid.cols)
-        t_all = all_tris.shape[0]
         uv = grid_uv.reshape(-1, 2)
         # the surface at the vertices and at the crease probes of every triangle, at once
-        sampled = surface.points_at(np.concatenate([uv, _probes(uv, all_tris)]))
+        sampled = surface.points_at(np.concatenate([uv, _probes(grid_uv)]))
         pts = sampled[: uv.shape[0]]
-        probes = sampled[uv.shape[0] :].T.reshape(3, 4, t_all)  # component-first
+        # each triangle's probes (3, 4, T), component-first
+        probes = np.take(sampled[uv.shape[0] :].T, _probe_index(grid.rows, grid.cols), axis=1)
         # every grid triangle's corners, normal and area (NaN where not all seen)
         corners = np.take(pts.T, all_tris.T, axis=1)  # (3, 3, T) component-first
         normals, area2 = planes_first(corners)
@@ -275,24 +277,68 @@ class MeshGeometry:
         return cls(grid, grid_uv, pts, topo, coords, sums / counts, shapes, curved)
 
 
-def _probes(uv: FloatArray, tris: IntArray) -> FloatArray:
-    """The :func:`~adaproj_edge.geometry.creases.crease_probes` of triangles ``tris``
-    (T, 3) of vertices ``uv`` (N, 2), probe-major: (4 T, 2), probe k of triangle t at
-    ``k T + t``."""
-    c = np.take(uv.T, tris.T, axis=1)  # (2, 3, T)
-    out = np.empty((2, 4, tris.shape[0]))
-    out[:, 0] = (c[:, 0] + c[:, 1]) / 2
-    out[:, 1] = (c[:, 1] + c[:, 2]) / 2
-    out[:, 2] = (c[:, 2] + c[:, 0]) / 2
-    out[:, 3] = (c[:, 0] + c[:, 1] + c[:, 2]) / 3
-    return out.reshape(2, -1).T
-
-
 def planar_shapes(tri_pts: FloatArray) -> FloatArray:
     """Triangles (T, 3, 3) in 2D frames of their own planes (T, 3, 2): corner 0 at the
     origin, corner 1 on the +x axis, corner 2 on the side the content's y axis has
     (content y points down, as for the projector's pixels)."""
     return triangle_shapes(tri_pts)[2]
+
+
+_VERTICES: OrderedDict[tuple[Grid, int, int], FloatArray] = OrderedDict()
+
+
+def _vertices(grid: Grid, projector: Projector) -> FloatArray:
+    """:meth:`Grid.vertices` (read-only: made once per grid and frame size)."""
+    key = (grid, projector.width, projector.height)
+    out = _VERTICES.get(key)
+    if out is None:
+        out = grid.vertices(projector)
+        out.flags.writeable = False
+        _VERTICES[key] = out
+        while len(_VERTICES) > 16:
+            _VERTICES.popitem(last=False)
+    return out
+
+
+def _probes(grid_uv: FloatArray) -> FloatArray:
+    """Where the grid's triangles are probed for creases, each point once (P, 2).
+
+    The midpoints of the horizontal, vertical and diagonal sides, then each cell's two
+    centroids; :func:`_probe_index` says which are each triangle's
+    :func:`~adaproj_edge.geometry.creases.crease_probes` (a side's midpoint is the
+    same whichever triangle adds its ends; a centroid adds them in its corners' order).
+    """
+    a, b = grid_uv[:-1, :-1], grid_uv[:-1, 1:]  # a cell's corners: a b
+    d, e = grid_uv[1:, :-1], grid_uv[1:, 1:]  #                      d e
+    return np.concatenate(
+        [
+            ((grid_uv[:, :-1] + grid_uv[:, 1:]) / 2).reshape(-1, 2),
+            ((grid_uv[:-1] + grid_uv[1:]) / 2).reshape(-1, 2),
+            ((a + e) / 2).reshape(-1, 2),
+            ((a + b + e) / 3).reshape(-1, 2),  # triangle (a, b, e)
+            ((a + e + d) / 3).reshape(-1, 2),  # triangle (a, e, d)
+        ]
+    )
+
+
+@functools.lru_cache(maxsize=16)
+def _probe_index(rows: int, cols: int) -> IntArray:
+    """Index (4, T) into :func:`_probes` of probe k of :func:`grid_triangles`' triangle
+    t (read-only: made once per grid size)."""
+    r, c = np.mgrid[0:rows, 0:cols]
+    horizontal = r * cols + c  # the side from (r, c) to (r, c + 1)
+    vertical = (rows + 1) * cols + r * (cols + 1) + c  # from (r, c) to (r + 1, c)
+    diagonal = (rows + 1) * cols + rows * (cols + 1) + r * cols + c
+    centroid = diagonal + rows * cols
+    index = np.empty((4, rows * cols, 2), dtype=np.intp)
+    # (a, b, e): sides a-b, b-e, e-a; (a, e, d): a-e, e-d, d-a
+    index[:, :, 0] = np.stack([horizontal, vertical + 1, diagonal, centroid]).reshape(4, -1)
+    index[:, :, 1] = np.stack(
+        [diagonal, horizontal + cols, vertical, centroid + rows * cols]
+    ).reshape(4, -1)
+    out = index.reshape(4, -1)
+    out.flags.writeable = False
+    return out
 
 
 def _grid_sides(
