@@ -15,7 +15,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from adaproj_edge.errors import WarpError
-from adaproj_edge.geometry.creases import unfold_creases
+from adaproj_edge.geometry.creases import crease_probes, unfold_creases
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import (
@@ -25,7 +25,7 @@ from adaproj_edge.geometry.triangles import (
     triangle_shapes,
     unique_edges,
 )
-from adaproj_edge.warp.mesh import MeshGeometry, Topology, planar_shapes
+from adaproj_edge.warp.mesh import MeshGeometry, Topology, _probe_index, _probes, planar_shapes
 from adaproj_edge.warp.warpmap import Grid
 
 
@@ -202,3 +202,27 @@ def test_mesh_build_is_the_plain_geometry(seed: int, rows: int, cols: int, holes
     np.add.at(sums, mesh.topology.inverse, sides.T.ravel())
     counts = np.bincount(mesh.topology.inverse, minlength=mesh.edges.shape[0])
     np.testing.assert_allclose(mesh.lengths, sums / counts, rtol=1e-15)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31), rows=st.integers(1, 15), cols=st.integers(1, 15))
+def test_shared_probes_are_each_triangles_crease_probes(seed: int, rows: int, cols: int) -> None:
+    rng = np.random.default_rng(seed)
+    xs = np.cumsum(rng.uniform(0.5, 40, cols + 1))
+    ys = np.cumsum(rng.uniform(0.5, 40, rows + 1))
+    grid_uv = np.stack(np.meshgrid(xs, ys), axis=-1)
+    grid_uv += rng.uniform(-0.3, 0.3, grid_uv.shape)  # not even a tensor grid
+    uv = grid_uv.reshape(-1, 2)
+    want = crease_probes(uv[grid_triangles(rows, cols)])  # (T, 4, 2)
+    got = _probes(grid_uv)[_probe_index(rows, cols)]  # (4, T, 2)
+    same(got.transpose(1, 0, 2), want)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**31), h=st.integers(2, 30), w=st.integers(2, 30), holes=st.floats(0, 1)
+)
+def test_valid_fraction_is_the_mean(seed: int, h: int, w: int, holes: float) -> None:
+    surface = random_surface(seed, h, w, holes)
+    assert surface.valid_fraction == float(np.mean(surface.valid))
+    assert type(surface.valid_fraction) is float
