@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.geometry.triangles import corners_first, planes_first
+from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
 
 ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, of a crease
 CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this make a crease
@@ -121,6 +121,68 @@ def unfold_measured(
     """:func:`unfold_creases` of triangles whose corners ``tri_pts`` (T, 3, 3), unit
     normals (3, T) and twice the areas (T,) (:func:`~adaproj_edge.geometry.triangles.
     planes_first`) and surface at the probes (3, 4, T) (component-first) are known."""
+    size = np.sqrt(area2)
+    # the probes' distances (4, T) to their triangle's plane
+    dist = np.abs(
+        (probes[0] - tri_pts[None, :, 0, 0]) * normals[0]
+        + (probes[1] - tri_pts[None, :, 0, 1]) * normals[1]
+        + (probes[2] - tri_pts[None, :, 0, 2]) * normals[2]
+    )
+    rough = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=0) > ROUGH * size
+    if not np.any(rough):
+        return _nothing_folded(tri_pts)
+    # the plane of each vertex: area-weighted normal of its smooth triangles
+    smooth = np.flatnonzero(~rough & np.isfinite(normals).all(axis=0))
+    weighted = normals[:, smooth] * size[smooth] ** 2  # (3, S), added at each corner
+    corners = tris[smooth].ravel()  # (3 S,): corner k of triangle t at 3 t + k
+    n_points = points.shape[0]
+    acc = np.empty((3, n_points))
+    for axis in range(3):
+        acc[axis] = np.bincount(corners, np.repeat(weighted[axis], 3), minlength=n_points)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        vn = acc / np.sqrt(dot_first(acc, acc))  # (3, N)
+    # only triangles whose corners' planes differ can hold a crease (checked for all
+    # rough triangles at once; the loop below then handles the few that remain)
+    rough_t = np.flatnonzero(rough)
+    corner_n = vn[:, tris[rough_t]]  # (3, R, 3)
+    with np.errstate(invalid="ignore"):
+        differ = np.any(dot_first(corner_n, corner_n[:, :, :1]) < CREASE_COS, axis=1)
+    cand = rough_t[differ & np.isfinite(corner_n).all(axis=(0, 2))]
+    if cand.size == 0:
+        return _nothing_folded(tri_pts)
+    lone, pair_a = _crease_groups(vn.T[tris[cand]])
+    cand, lone, pair_a = cand[lone >= 0], lone[lone >= 0], pair_a[lone >= 0]
+    # the two sides' planes, from the corners' planes; a: the side of corner 0
+    pair = np.stack([(lone + 1) % 3, (lone + 2) % 3], axis=1)
+    pair.sort(axis=1)
+    corner_vn, corner_pt = vn.T[tris[cand]], tri_pts[cand]  # (C, 3, 3)
+    at = np.arange(cand.size)
+    n_pair, p_pair = corner_vn[at[:, None], pair], corner_pt[at[:, None], pair]  # (C, 2, 3)
+    n_lone, p_lone = corner_vn[at, lone], corner_pt[at, lone]
+    plane_pair = _pair_plane(n_pair, p_pair, n_lone)
+    plane_lone = (n_lone / np.sqrt(dot_first(n_lone.T, n_lone.T))[:, None], p_lone)
+    side = pair_a[:, None]
+    na = np.where(side, plane_pair[0], plane_lone[0])
+    pa = np.where(side, plane_pair[1], plane_lone[1])
+    nb = np.where(side, plane_lone[0], plane_pair[0])
+    pb = np.where(side, plane_lone[1], plane_pair[1])
+    # a crease only if the two planes explain the surface inside the triangle (a
+    # strongly curved smooth patch, e.g. near a silhouette, is left as it is)
+    probe = probes[:, :, cand].transpose(2, 1, 0)  # (C, 4, 3)
+    seen = np.all(np.isfinite(probe), axis=2)
+    fit = np.minimum(
+        np.abs(np.einsum("cpj,cj->cp", probe - pa[:, None], na)),
+        np.abs(np.einsum("cpj,cj->cp", probe - pb[:, None], nb)),
+    )
+    worst = np.max(np.where(seen, fit, -np.inf), axis=1)
+    # straight creases: the two planes explain the surface; curved ones (a curved wall
+    # meeting a floor): far better than the triangle does (a smooth curved patch is
+    # explained about as badly by its corners' planes as by its chord)
+    chord = np.max(np.where(np.isfinite(dist[:, cand]), dist[:, cand], 0.0), axis=0)
+    straight = worst <= FIT * ROUGH * size[cand]
+    keep = np.any(seen, axis=1) & (straight | (worst <= CURVED_FIT * chord))
+    if not np.any(keep):
+        return _nothing_folded(tri_pts)
     t_count = tris.shape[0]
     out = tri_pts.copy()
     nan3 = np.full((t_count, 3), np.nan)
@@ -135,70 +197,6 @@ def unfold_measured(
         np.zeros((t_count, 3)),
         np.zeros(t_count),
     )
-    size = np.sqrt(area2)
-    # the probes' distances (4, T) to their triangle's plane
-    dist = np.abs(
-        (probes[0] - tri_pts[None, :, 0, 0]) * normals[0]
-        + (probes[1] - tri_pts[None, :, 0, 1]) * normals[1]
-        + (probes[2] - tri_pts[None, :, 0, 2]) * normals[2]
-    )
-    rough = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=0) > ROUGH * size
-    if not np.any(rough):
-        return unfolding
-    n, xs, dist = normals.T, probes.transpose(2, 1, 0), dist.T  # (T, 3), (T, 4, 3), (T, 4)
-    # the plane of each vertex: area-weighted normal of its smooth triangles
-    smooth = ~rough & np.all(np.isfinite(n), axis=1)
-    weighted = n[smooth] * size[smooth, None] ** 2  # (S, 3), added at each corner
-    corners = tris[smooth].ravel()  # (3 S,): corner k of triangle t at 3 t + k
-    acc = np.stack(
-        [
-            np.bincount(corners, np.repeat(weighted[:, c], 3), minlength=points.shape[0])
-            for c in range(3)
-        ],
-        axis=1,
-    )
-    with np.errstate(invalid="ignore", divide="ignore"):
-        vn = acc / np.linalg.norm(acc, axis=1, keepdims=True)
-    # only triangles whose corners' planes differ can hold a crease (checked for all
-    # rough triangles at once; the loop below then handles the few that remain)
-    rough_t = np.flatnonzero(rough)
-    corner_n = vn[tris[rough_t]]  # (R, 3, 3)
-    with np.errstate(invalid="ignore"):
-        differ = np.any(np.einsum("rkj,rj->rk", corner_n, corner_n[:, 0]) < CREASE_COS, axis=1)
-    cand = rough_t[differ & np.all(np.isfinite(corner_n), axis=(1, 2))]
-    if cand.size == 0:
-        return unfolding
-    lone, pair_a = _crease_groups(vn[tris[cand]])
-    cand, lone, pair_a = cand[lone >= 0], lone[lone >= 0], pair_a[lone >= 0]
-    # the two sides' planes, from the corners' planes; a: the side of corner 0
-    pair = np.stack([(lone + 1) % 3, (lone + 2) % 3], axis=1)
-    pair.sort(axis=1)
-    corner_vn, corner_pt = vn[tris[cand]], tri_pts[cand]  # (C, 3, 3)
-    at = np.arange(cand.size)
-    n_pair, p_pair = corner_vn[at[:, None], pair], corner_pt[at[:, None], pair]  # (C, 2, 3)
-    n_lone, p_lone = corner_vn[at, lone], corner_pt[at, lone]
-    plane_pair = _pair_plane(n_pair, p_pair, n_lone)
-    plane_lone = (n_lone / np.linalg.norm(n_lone, axis=1, keepdims=True), p_lone)
-    side = pair_a[:, None]
-    na = np.where(side, plane_pair[0], plane_lone[0])
-    pa = np.where(side, plane_pair[1], plane_lone[1])
-    nb = np.where(side, plane_lone[0], plane_pair[0])
-    pb = np.where(side, plane_lone[1], plane_pair[1])
-    # a crease only if the two planes explain the surface inside the triangle (a
-    # strongly curved smooth patch, e.g. near a silhouette, is left as it is)
-    probe = xs[cand]  # (C, 4, 3)
-    seen = np.all(np.isfinite(probe), axis=2)
-    fit = np.minimum(
-        np.abs(np.einsum("cpj,cj->cp", probe - pa[:, None], na)),
-        np.abs(np.einsum("cpj,cj->cp", probe - pb[:, None], nb)),
-    )
-    worst = np.max(np.where(seen, fit, -np.inf), axis=1)
-    # straight creases: the two planes explain the surface; curved ones (a curved wall
-    # meeting a floor): far better than the triangle does (a smooth curved patch is
-    # explained about as badly by its corners' planes as by its chord)
-    chord = np.max(np.where(np.isfinite(dist[cand]), dist[cand], 0.0), axis=1)
-    straight = worst <= FIT * ROUGH * size[cand]
-    keep = np.any(seen, axis=1) & (straight | (worst <= CURVED_FIT * chord))
     for c in np.flatnonzero(keep):  # few: the triangles a crease runs through
         t = cand[c]
         rot, origin = _unfolding_rotation(pa[c], na[c], pb[c], nb[c])
@@ -213,6 +211,24 @@ def unfold_measured(
     return unfolding
 
 
+def _nothing_folded(tri_pts: FloatArray) -> Unfolding:
+    """The :class:`Unfolding` of triangles ``tri_pts`` (T, 3, 3) without a crease (its
+    arrays read-only, the corners ``tri_pts`` themselves)."""
+    t_count = tri_pts.shape[0]
+    nan3 = np.broadcast_to(np.nan, (t_count, 3))
+    return Unfolding(
+        tri_pts,
+        np.broadcast_to(False, (t_count,)),
+        nan3,
+        nan3,
+        nan3,
+        nan3,
+        np.broadcast_to(np.eye(3), (t_count, 3, 3)),
+        np.broadcast_to(0.0, (t_count, 3)),
+        np.broadcast_to(0.0, (t_count,)),
+    )
+
+
 def _crease_groups(normals: FloatArray) -> tuple[IntArray, NDArray[np.bool_]]:
     """The corners, by their planes' normals (C, 3, 3), on either side of a crease.
 
@@ -222,16 +238,17 @@ def _crease_groups(normals: FloatArray) -> tuple[IntArray, NDArray[np.bool_]]:
     two planes far enough apart, or three different planes), and whether the pair is
     the side of corner 0 (C,).
     """
+    normals = normals.transpose(2, 0, 1)  # component-first (xyz, C, corner)
     pairs = np.array([(0, 1), (0, 2), (1, 2)])
-    dots = np.einsum("cpj,cpj->cp", normals[:, pairs[:, 0]], normals[:, pairs[:, 1]])
+    dots = dot_first(normals[:, :, pairs[:, 0]], normals[:, :, pairs[:, 1]])  # (C, 3)
     first = np.argmin(dots, axis=1)  # the two most different corners i, j
     i, j = pairs[first, 0], pairs[first, 1]
-    lowest = dots[np.arange(dots.shape[0]), first]
+    at = np.arange(dots.shape[0])
+    lowest = dots[at, first]
     crease = np.arccos(np.clip(lowest, -1.0, 1.0))
     k = 3 - i - j
-    at = np.arange(normals.shape[0])
-    to_i = np.einsum("cj,cj->c", normals[at, k], normals[at, i])
-    to_j = np.einsum("cj,cj->c", normals[at, k], normals[at, j])
+    to_i = dot_first(normals[:, at, k], normals[:, at, i])
+    to_j = dot_first(normals[:, at, k], normals[:, at, j])
     partner_i = to_i >= to_j
     near = np.arccos(np.clip(np.maximum(to_i, to_j), -1.0, 1.0))
     lone = np.where(partner_i, j, i)  # k joins its partner, the other stays alone
@@ -247,12 +264,12 @@ def _pair_plane(
     their mean point; but when their normals differ much (a corner on the crease itself
     has a mix of both sides' normals), the corner farthest from the other side (its
     normal ``other`` (C, 3))."""
-    n = normals.sum(axis=1)
+    n = normals[:, 0] + normals[:, 1]
     with np.errstate(invalid="ignore", divide="ignore"):  # (only used where they agree)
-        mean_n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    mean_p = points.mean(axis=1)
-    apart = np.einsum("cj,cj->c", normals[:, 0], normals[:, 1]) < SAME_SIDE_COS
-    far = np.argmin(np.einsum("ckj,cj->ck", normals, other), axis=1)
+        mean_n = n / np.sqrt(dot_first(n.T, n.T))[:, None]
+    mean_p = (points[:, 0] + points[:, 1]) / 2
+    apart = dot_first(normals[:, 0].T, normals[:, 1].T) < SAME_SIDE_COS
+    far = np.argmin(dot_first(normals.T, other.T[:, None]), axis=0)
     at = np.arange(normals.shape[0])
     return (
         np.where(apart[:, None], normals[at, far], mean_n),

@@ -123,9 +123,9 @@ def corners_first(p: FloatArray) -> FloatArray:
 def planes_first(q: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Unit normals (3, T) facing the projector (as :func:`triangle_normals`) and twice
     the areas (T,) of component-first triangles ``q`` (3, 3, T)."""
-    n = -_cross_first(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0])
+    n = -cross_first(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0])
     with np.errstate(invalid="ignore", divide="ignore"):
-        area2: FloatArray = np.sqrt(_dot_first(n, n))
+        area2: FloatArray = np.sqrt(dot_first(n, n))
         unit: FloatArray = n / area2
     return unit, area2
 
@@ -144,27 +144,27 @@ def shapes_first(
     side = following - q  # corner k + 1 - corner k: a side's length either way round
     n = planes_first(q)[0] if normals is None else normals
     with np.errstate(invalid="ignore", divide="ignore"):
-        ee = _dot_first(e, e)
+        ee = dot_first(e, e)
         coords = np.empty((t, 3, 2))
-        coords[:, :, 0] = (_dot_first(d, e) / ee).T
-        coords[:, :, 1] = (_dot_first(d, _cross_first(n[:, None], e)) / ee).T
-        l1 = np.sqrt(_dot_first(e1, e1))
-        x2 = _dot_first(e1, e2) / l1
+        coords[:, :, 0] = (dot_first(d, e) / ee).T
+        coords[:, :, 1] = (dot_first(d, cross_first(n[:, None], e)) / ee).T
+        l1 = np.sqrt(dot_first(e1, e1))
+        x2 = dot_first(e1, e2) / l1
     planar = np.zeros((t, 3, 2))
     planar[:, 1, 0] = l1
     planar[:, 2, 0] = x2
-    planar[:, 2, 1] = np.sqrt(np.maximum(_dot_first(e2, e2) - x2 * x2, 0.0))
-    sides: FloatArray = np.sqrt(_dot_first(side, side))
+    planar[:, 2, 1] = np.sqrt(np.maximum(dot_first(e2, e2) - x2 * x2, 0.0))
+    sides: FloatArray = np.sqrt(dot_first(side, side))
     return coords, sides, planar
 
 
-def _dot_first(a: FloatArray, b: FloatArray) -> FloatArray:
+def dot_first(a: FloatArray, b: FloatArray) -> FloatArray:
     """Dot products of component-first (3, ...) arrays, x + y + z in that order."""
     out: FloatArray = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
     return out
 
 
-def _cross_first(a: FloatArray, b: FloatArray) -> FloatArray:
+def cross_first(a: FloatArray, b: FloatArray) -> FloatArray:
     """Cross products of component-first (3, ...) arrays (as :func:`cross`)."""
     out: FloatArray = np.stack(
         [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
