@@ -213,19 +213,21 @@ def unfold_measured(
 
 def _nothing_folded(tri_pts: FloatArray) -> Unfolding:
     """The :class:`Unfolding` of triangles ``tri_pts`` (T, 3, 3) without a crease (its
-    arrays read-only, the corners ``tri_pts`` themselves)."""
+    corners are ``tri_pts`` themselves)."""
     t_count = tri_pts.shape[0]
-    nan3 = np.broadcast_to(np.nan, (t_count, 3))
+    nan3 = np.full((t_count, 3), np.nan)
+    rotation = np.zeros((t_count, 3, 3))
+    rotation[:, 0, 0] = rotation[:, 1, 1] = rotation[:, 2, 2] = 1.0
     return Unfolding(
         tri_pts,
-        np.broadcast_to(False, (t_count,)),
+        np.zeros(t_count, dtype=bool),
         nan3,
-        nan3,
-        nan3,
-        nan3,
-        np.broadcast_to(np.eye(3), (t_count, 3, 3)),
-        np.broadcast_to(0.0, (t_count, 3)),
-        np.broadcast_to(0.0, (t_count,)),
+        nan3.copy(),
+        nan3.copy(),
+        nan3.copy(),
+        rotation,
+        np.zeros((t_count, 3)),
+        np.zeros(t_count),
     )
 
 
