@@ -16,8 +16,7 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.creases import unfold_measured
-from adaproj_edge.geometry.projector import Projector
-from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.geometry.surface import Stencil, Surface
 from adaproj_edge.geometry.triangles import (
     grid_triangles,
     planes_first,
@@ -225,13 +224,16 @@ class MeshGeometry:
         ``grid_uv`` (rows + 1, cols + 1, 2) places the vertices elsewhere than
         :meth:`Grid.vertices` (a coarse grid on a subset of a fine grid's vertices)."""
         if grid_uv is None:
-            grid_uv = _vertices(grid, surface.projector)
+            sampling = _base_sampling(grid, surface)
+            grid_uv = sampling.grid_uv
         elif grid_uv.shape != (grid.rows + 1, grid.cols + 1, 2):
             raise ValueError(f"grid_uv {grid_uv.shape} does not fit grid {grid}")
+        else:
+            sampling = _Sampling.of(surface, grid_uv)
         all_tris = grid_triangles(grid.rows, grid.cols)
         uv = grid_uv.reshape(-1, 2)
         # the surface at the vertices and at the crease probes of every triangle, at once
-        sampled = surface.points_at(np.concatenate([uv, _probes(grid_uv)]))
+        sampled = sampling.points(surface)
         pts = sampled[: uv.shape[0]]
         # each triangle's probes (3, 4, T), component-first
         probes = np.take(sampled[uv.shape[0] :].T, _probe_index(grid.rows, grid.cols), axis=1)
@@ -284,19 +286,45 @@ def planar_shapes(tri_pts: FloatArray) -> FloatArray:
     return triangle_shapes(tri_pts)[2]
 
 
-_VERTICES: OrderedDict[tuple[Grid, int, int], FloatArray] = OrderedDict()
+@dataclass(frozen=True)
+class _Sampling:
+    """Where a grid samples the surface (its vertices, then :func:`_probes`): their rays
+    and the lattice's :class:`~adaproj_edge.geometry.surface.Stencil` there."""
+
+    grid_uv: FloatArray
+    rays: FloatArray
+    stencil: Stencil
+
+    @classmethod
+    def of(cls, surface: Surface, grid_uv: FloatArray) -> _Sampling:
+        uv = np.concatenate([grid_uv.reshape(-1, 2), _probes(grid_uv)])
+        return cls(grid_uv, surface.projector.rays(uv), surface.stencil(uv))
+
+    def points(self, surface: Surface) -> FloatArray:
+        """``surface.points_at`` the sampled pixels (M, 3), the same values."""
+        out: FloatArray = self.rays * self.stencil.depth(surface.points)[:, None]
+        return out
 
 
-def _vertices(grid: Grid, projector: Projector) -> FloatArray:
-    """:meth:`Grid.vertices` (read-only: made once per grid and frame size)."""
-    key = (grid, projector.width, projector.height)
-    out = _VERTICES.get(key)
+_SAMPLINGS: OrderedDict[tuple[Any, ...], _Sampling] = OrderedDict()
+
+
+def _base_sampling(grid: Grid, surface: Surface) -> _Sampling:
+    """The :class:`_Sampling` of :meth:`Grid.vertices`: it depends on the grid, the
+    projector and the lattice's shape alone, so it is made once for them (read-only)."""
+    p = surface.projector
+    key = (grid, p.width, p.height, p.K.tobytes(), surface.shape)
+    out = _SAMPLINGS.get(key)
     if out is None:
-        out = grid.vertices(projector)
-        out.flags.writeable = False
-        _VERTICES[key] = out
-        while len(_VERTICES) > 16:
-            _VERTICES.popitem(last=False)
+        grid_uv = grid.vertices(p)
+        out = _Sampling.of(surface, grid_uv)
+        for a in (grid_uv, out.rays, out.stencil.at, out.stencil.weights):
+            a.flags.writeable = False
+        _SAMPLINGS[key] = out
+        while len(_SAMPLINGS) > 8:
+            _SAMPLINGS.popitem(last=False)
+    else:
+        _SAMPLINGS.move_to_end(key)
     return out
 
 

@@ -3,7 +3,8 @@
 The mesh build samples the surface with one gather (:meth:`Surface.depth_at`), works
 on component-first planes (:func:`~adaproj_edge.geometry.triangles.shapes_first`) and
 numbers a grid triangle's sides instead of sorting them (``Topology.from_triangles``
-with ``grid_cols``). Each is checked here, on random surfaces, against a plain
+with ``grid_cols``), and keeps the base grid's sampling (rays, bilinear stencil) for
+every surface of the same lattice. Each is checked here, on random surfaces, against a plain
 implementation of its definition written out below (the formulas the fast paths
 replaced): the values must be bit-identical, so the warps are unchanged.
 """
@@ -25,7 +26,14 @@ from adaproj_edge.geometry.triangles import (
     triangle_shapes,
     unique_edges,
 )
-from adaproj_edge.warp.mesh import MeshGeometry, Topology, _probe_index, _probes, planar_shapes
+from adaproj_edge.warp.mesh import (
+    _SAMPLINGS,
+    MeshGeometry,
+    Topology,
+    _probe_index,
+    _probes,
+    planar_shapes,
+)
 from adaproj_edge.warp.warpmap import Grid
 
 
@@ -226,3 +234,20 @@ def test_valid_fraction_is_the_mean(seed: int, h: int, w: int, holes: float) -> 
     surface = random_surface(seed, h, w, holes)
     assert surface.valid_fraction == float(np.mean(surface.valid))
     assert type(surface.valid_fraction) is float
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31), holes=st.sampled_from([0.0, 0.1]))
+def test_a_kept_sampling_serves_every_surface_of_the_lattice(seed: int, holes: float) -> None:
+    """The base grid's sampling (rays, stencil) is made once per grid, projector and
+    lattice shape: a mesh of another surface on it is the mesh made from scratch."""
+    first, second = random_surface(seed, 40, 60, holes), random_surface(seed + 1, 40, 60, holes)
+    uv = np.random.default_rng(seed).uniform(0, 1000, (300, 2))
+    same(first.stencil(uv).depth(second.points), second.depth_at(uv))
+    grid = Grid(12, 9)
+    MeshGeometry.build(first, grid)  # keeps the sampling
+    kept = MeshGeometry.build(second, grid)
+    _SAMPLINGS.clear()
+    fresh = MeshGeometry.build(second, grid)
+    for name in ("grid_uv", "points", "coords", "lengths", "shapes", "tris", "edges"):
+        same(getattr(kept, name), getattr(fresh, name))
