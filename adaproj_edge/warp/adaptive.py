@@ -25,10 +25,12 @@ needed. Along a column or row that needs no more lines nothing is added.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.surface import Surface
@@ -118,8 +120,8 @@ def bends(
     # component planes (x, y, z), each a contiguous 2D array: fast elementwise sums
     X = np.moveaxis(surface.points[::ky, ::kx], -1, 0).astype(np.float32)
     h, w = surface.shape
-    xs = np.arange(0, w, kx) * sx  # the nodes' pixel positions
-    ys = np.arange(0, h, ky) * sy
+    xs = np.arange(0, w, kx, dtype=np.float64) * sx  # the nodes' pixel positions
+    ys = np.arange(0, h, ky, dtype=np.float64) * sy
     dx = (X[:, 1:-1, 2:] - X[:, 1:-1, :-2]) / 2  # per sample step
     dy = (X[:, 2:, 1:-1] - X[:, :-2, 1:-1]) / 2
     ddx = X[:, 1:-1, 2:] - 2 * X[:, 1:-1, 1:-1] + X[:, 1:-1, :-2]
@@ -143,30 +145,66 @@ def bends(
     if not kinks:  # a crease is one or two samples wide: curvature bends over three
         bx = np.pad(np.fmin(np.fmin(bx[:, :-2], bx[:, 1:-1]), bx[:, 2:]), ((0, 0), (1, 1)))
         by = np.pad(np.fmin(np.fmin(by[:-2], by[1:-1]), by[2:]), ((1, 1), (0, 0)))
-    cols, rows = grid_uv[0, :, 0], grid_uv[:, 0, 1]
-    n_cols, n_rows = cols.size - 1, rows.size - 1
-    ci = np.clip(np.searchsorted(cols, xs[1:-1], side="right") - 1, 0, n_cols - 1)
-    ri = np.clip(np.searchsorted(rows, ys[1:-1], side="right") - 1, 0, n_rows - 1)
-    # the cell's size along x (y) in samples: its width (height) over the sample step
-    along_x = bx * (np.diff(cols)[ci] / (kx * sx))[None, :]
-    along_y = by * (np.diff(rows)[ri] / (ky * sy))[:, None]
-    if not along_x.size:
+    cells = _cells(grid_uv[0, :, 0], grid_uv[:, 0, 1], xs[1:-1], ys[1:-1], kx * sx, ky * sy)
+    n_rows, n_cols = cells.has.shape
+    if not bx.size:
         return np.zeros((n_rows, n_cols)), np.zeros((n_rows, n_cols))
-    # samples of a cell are contiguous along both axes: a max per block, 0 in the cells
-    # that hold no sample
-    c_start = np.minimum(np.searchsorted(ci, np.arange(n_cols)), along_x.shape[1] - 1)
-    r_start = np.minimum(np.searchsorted(ri, np.arange(n_rows)), along_x.shape[0] - 1)
+    out = []
+    for per in (bx * cells.size_x[None, :], by * cells.size_y[:, None]):
+        # samples of a cell are contiguous along both axes: a max per block (rows first,
+        # then columns on the transpose: long runs, few calls), 0 where none; a last
+        # row and column of zeros end the last blocks (the bends are >= 0)
+        padded = np.zeros((per.shape[0] + 1, per.shape[1] + 1))
+        padded[:-1, :-1] = np.where(np.isfinite(per), per, 0.0)
+        block = np.maximum.reduceat(padded, cells.row_start, axis=0)
+        block = np.maximum.reduceat(block.T, cells.col_start, axis=0).T
+        out.append(np.where(cells.has, block, 0.0))
+    return out[0], out[1]
+
+
+@dataclass(frozen=True)
+class _Cells:
+    """Which grid cell each sample falls in (:func:`bends`), for a grid's lines and a
+    lattice's samples."""
+
+    size_x: FloatArray  # (columns of samples,) the cell's width in samples
+    size_y: FloatArray  # (rows of samples,)
+    col_start: IntArray  # (grid columns,) each cell's first sample column (or the next's)
+    row_start: IntArray  # (grid rows,)
+    has: NDArray[np.bool_]  # (grid rows, grid columns) the cell holds a sample
+
+
+_CELLS: OrderedDict[tuple[bytes | float, ...], _Cells] = OrderedDict()
+
+
+def _cells(
+    cols: FloatArray, rows: FloatArray, xs: FloatArray, ys: FloatArray, step_x: float, step_y: float
+) -> _Cells:
+    """The :class:`_Cells` of grid lines ``cols``, ``rows`` and samples at ``xs``,
+    ``ys`` (pixels), ``step_x``, ``step_y`` pixels apart; the last few kept (a grid and
+    a lattice make the same ones on every surface)."""
+    key = (cols.tobytes(), rows.tobytes(), xs.tobytes(), ys.tobytes(), step_x, step_y)
+    out = _CELLS.get(key)
+    if out is not None:
+        _CELLS.move_to_end(key)
+        return out
+    n_cols, n_rows = cols.size - 1, rows.size - 1
+    ci = np.clip(np.searchsorted(cols, xs, side="right") - 1, 0, n_cols - 1)
+    ri = np.clip(np.searchsorted(rows, ys, side="right") - 1, 0, n_rows - 1)
     has_c, has_r = np.zeros(n_cols, bool), np.zeros(n_rows, bool)
     has_c[ci] = True
     has_r[ri] = True
-    has = has_r[:, None] & has_c[None, :]
-    out = []
-    for per in (along_x, along_y):
-        per = np.where(np.isfinite(per), per, 0.0)
-        block = np.maximum.reduceat(per, c_start, axis=1)
-        block = np.maximum.reduceat(block, r_start, axis=0)
-        out.append(np.where(has, block, 0.0))
-    return out[0], out[1]
+    out = _Cells(
+        np.diff(cols)[ci] / step_x,
+        np.diff(rows)[ri] / step_y,
+        np.searchsorted(ci, np.arange(n_cols)),
+        np.searchsorted(ri, np.arange(n_rows)),
+        has_r[:, None] & has_c[None, :],
+    )
+    _CELLS[key] = out
+    while len(_CELLS) > 8:
+        _CELLS.popitem(last=False)
+    return out
 
 
 def _limits(bx: FloatArray, by: FloatArray) -> FloatArray:

@@ -26,6 +26,7 @@ from adaproj_edge.geometry.triangles import (
     triangle_shapes,
     unique_edges,
 )
+from adaproj_edge.warp.adaptive import bends
 from adaproj_edge.warp.mesh import (
     _SAMPLINGS,
     MeshGeometry,
@@ -251,3 +252,80 @@ def test_a_kept_sampling_serves_every_surface_of_the_lattice(seed: int, holes: f
     fresh = MeshGeometry.build(second, grid)
     for name in ("grid_uv", "points", "coords", "lengths", "shapes", "tris", "edges"):
         same(getattr(kept, name), getattr(fresh, name))
+
+
+def plain_bends(
+    surface: Surface, grid_uv: np.ndarray, sample: float, kinks: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """``kappa h`` per sample, then the worst in each cell, cell by cell."""
+    sx, sy = surface.lattice_scale()
+    kx, ky = max(1, round(sample / sx)), max(1, round(sample / sy))
+    X = np.moveaxis(surface.points[::ky, ::kx], -1, 0).astype(np.float32)
+    h, w = surface.shape
+    xs, ys = np.arange(0, w, kx) * sx, np.arange(0, h, ky) * sy
+    dx = (X[:, 1:-1, 2:] - X[:, 1:-1, :-2]) / 2
+    dy = (X[:, 2:, 1:-1] - X[:, :-2, 1:-1]) / 2
+    ddx = X[:, 1:-1, 2:] - 2 * X[:, 1:-1, 1:-1] + X[:, 1:-1, :-2]
+    ddy = X[:, 2:, 1:-1] - 2 * X[:, 1:-1, 1:-1] + X[:, :-2, 1:-1]
+    n = np.stack(
+        [
+            dx[1] * dy[2] - dx[2] * dy[1],
+            dx[2] * dy[0] - dx[0] * dy[2],
+            dx[0] * dy[1] - dx[1] * dy[0],
+        ]
+    )
+    with np.errstate(invalid="ignore", divide="ignore"):
+        length = np.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
+        bx = np.abs(n[0] * ddx[0] + n[1] * ddx[1] + n[2] * ddx[2]) / (
+            length * np.sqrt(dx[0] ** 2 + dx[1] ** 2 + dx[2] ** 2)
+        )
+        by = np.abs(n[0] * ddy[0] + n[1] * ddy[1] + n[2] * ddy[2]) / (
+            length * np.sqrt(dy[0] ** 2 + dy[1] ** 2 + dy[2] ** 2)
+        )
+    if not kinks:
+        bx = np.pad(np.fmin(np.fmin(bx[:, :-2], bx[:, 1:-1]), bx[:, 2:]), ((0, 0), (1, 1)))
+        by = np.pad(np.fmin(np.fmin(by[:-2], by[1:-1]), by[2:]), ((1, 1), (0, 0)))
+    cols, rows = grid_uv[0, :, 0], grid_uv[:, 0, 1]
+    ci = np.clip(np.searchsorted(cols, xs[1:-1], side="right") - 1, 0, cols.size - 2)
+    ri = np.clip(np.searchsorted(rows, ys[1:-1], side="right") - 1, 0, rows.size - 2)
+    out = []
+    for per, scale in ((bx, np.diff(cols)[ci][None, :] / (kx * sx)), (by, None)):
+        if scale is None:
+            per = per * (np.diff(rows)[ri] / (ky * sy))[:, None]
+        else:
+            per = per * scale
+        per = np.where(np.isfinite(per), per, 0.0)
+        worst = np.zeros((rows.size - 1, cols.size - 1))
+        for r in range(rows.size - 1):
+            for c in range(cols.size - 1):
+                block = per[np.ix_(ri == r, ci == c)]
+                if block.size:
+                    worst[r, c] = block.max()
+        out.append(worst)
+    return out[0], out[1]
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**31),
+    rows=st.integers(1, 12),
+    cols=st.integers(1, 12),
+    sample=st.sampled_from([8.0, 16.0, 40.0]),
+    kinks=st.booleans(),
+)
+def test_bends_are_the_plain_worst_per_cell(
+    seed: int, rows: int, cols: int, sample: float, kinks: bool
+) -> None:
+    surface = random_surface(seed, 80, 120, 0.02)
+    p = surface.projector
+    rng = np.random.default_rng(seed)
+    xs = np.unique(np.rint(rng.uniform(0, p.width - 1, cols + 1)))
+    ys = np.unique(np.rint(rng.uniform(0, p.height - 1, rows + 1)))
+    assume(xs.size > 1 and ys.size > 1)
+    grid_uv = np.stack(np.meshgrid(xs, ys), axis=-1)
+    got = bends(surface, grid_uv, sample, kinks)
+    again = bends(surface, grid_uv, sample, kinks)  # the cells kept from the first call
+    want = plain_bends(surface, grid_uv, sample, kinks)
+    for a, b, c in zip(got, again, want, strict=True):
+        same(a, c)
+        same(b, c)
