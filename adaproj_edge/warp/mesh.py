@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -16,7 +15,7 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.creases import unfold_measured
-from adaproj_edge.geometry.surface import Stencil, Surface
+from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import (
     grid_triangles,
     planes_first,
@@ -24,6 +23,7 @@ from adaproj_edge.geometry.triangles import (
     triangle_shapes,
     unique_edges,
 )
+from adaproj_edge.warp.sampling import Sampling, base_sampling, probe_index
 from adaproj_edge.warp.warpmap import Grid
 
 T = TypeVar("T")
@@ -224,19 +224,19 @@ class MeshGeometry:
         ``grid_uv`` (rows + 1, cols + 1, 2) places the vertices elsewhere than
         :meth:`Grid.vertices` (a coarse grid on a subset of a fine grid's vertices)."""
         if grid_uv is None:
-            sampling = _base_sampling(grid, surface)
+            sampling = base_sampling(grid, surface)
             grid_uv = sampling.grid_uv
         elif grid_uv.shape != (grid.rows + 1, grid.cols + 1, 2):
             raise ValueError(f"grid_uv {grid_uv.shape} does not fit grid {grid}")
         else:
-            sampling = _Sampling.of(surface, grid_uv)
+            sampling = Sampling.of(surface, grid_uv)
         all_tris = grid_triangles(grid.rows, grid.cols)
         uv = grid_uv.reshape(-1, 2)
         # the surface at the vertices and at the crease probes of every triangle, at once
         sampled = sampling.points(surface)
         pts = sampled[: uv.shape[0]]
         # each triangle's probes (3, 4, T), component-first
-        probes = np.take(sampled[uv.shape[0] :].T, _probe_index(grid.rows, grid.cols), axis=1)
+        probes = np.take(sampled[uv.shape[0] :].T, probe_index(grid.rows, grid.cols), axis=1)
         # every grid triangle's corners, normal and area (NaN where not all seen)
         corners = np.take(pts.T, all_tris.T, axis=1)  # (3, 3, T) component-first
         normals, area2 = planes_first(corners)
@@ -284,89 +284,6 @@ def planar_shapes(tri_pts: FloatArray) -> FloatArray:
     origin, corner 1 on the +x axis, corner 2 on the side the content's y axis has
     (content y points down, as for the projector's pixels)."""
     return triangle_shapes(tri_pts)[2]
-
-
-@dataclass(frozen=True)
-class _Sampling:
-    """Where a grid samples the surface (its vertices, then :func:`_probes`): their rays
-    and the lattice's :class:`~adaproj_edge.geometry.surface.Stencil` there."""
-
-    grid_uv: FloatArray
-    rays: FloatArray
-    stencil: Stencil
-
-    @classmethod
-    def of(cls, surface: Surface, grid_uv: FloatArray) -> _Sampling:
-        uv = np.concatenate([grid_uv.reshape(-1, 2), _probes(grid_uv)])
-        return cls(grid_uv, surface.projector.rays(uv), surface.stencil(uv))
-
-    def points(self, surface: Surface) -> FloatArray:
-        """``surface.points_at`` the sampled pixels (M, 3), the same values."""
-        out: FloatArray = self.rays * self.stencil.depth(surface.points)[:, None]
-        return out
-
-
-_SAMPLINGS: OrderedDict[tuple[Any, ...], _Sampling] = OrderedDict()
-
-
-def _base_sampling(grid: Grid, surface: Surface) -> _Sampling:
-    """The :class:`_Sampling` of :meth:`Grid.vertices`: it depends on the grid, the
-    projector and the lattice's shape alone, so it is made once for them (read-only)."""
-    p = surface.projector
-    key = (grid, p.width, p.height, p.K.tobytes(), surface.shape)
-    out = _SAMPLINGS.get(key)
-    if out is None:
-        grid_uv = grid.vertices(p)
-        out = _Sampling.of(surface, grid_uv)
-        for a in (grid_uv, out.rays, out.stencil.at, out.stencil.weights):
-            a.flags.writeable = False
-        _SAMPLINGS[key] = out
-        while len(_SAMPLINGS) > 8:
-            _SAMPLINGS.popitem(last=False)
-    else:
-        _SAMPLINGS.move_to_end(key)
-    return out
-
-
-def _probes(grid_uv: FloatArray) -> FloatArray:
-    """Where the grid's triangles are probed for creases, each point once (P, 2).
-
-    The midpoints of the horizontal, vertical and diagonal sides, then each cell's two
-    centroids; :func:`_probe_index` says which are each triangle's
-    :func:`~adaproj_edge.geometry.creases.crease_probes` (a side's midpoint is the
-    same whichever triangle adds its ends; a centroid adds them in its corners' order).
-    """
-    a, b = grid_uv[:-1, :-1], grid_uv[:-1, 1:]  # a cell's corners: a b
-    d, e = grid_uv[1:, :-1], grid_uv[1:, 1:]  #                      d e
-    return np.concatenate(
-        [
-            ((grid_uv[:, :-1] + grid_uv[:, 1:]) / 2).reshape(-1, 2),
-            ((grid_uv[:-1] + grid_uv[1:]) / 2).reshape(-1, 2),
-            ((a + e) / 2).reshape(-1, 2),
-            ((a + b + e) / 3).reshape(-1, 2),  # triangle (a, b, e)
-            ((a + e + d) / 3).reshape(-1, 2),  # triangle (a, e, d)
-        ]
-    )
-
-
-@functools.lru_cache(maxsize=16)
-def _probe_index(rows: int, cols: int) -> IntArray:
-    """Index (4, T) into :func:`_probes` of probe k of :func:`grid_triangles`' triangle
-    t (read-only: made once per grid size)."""
-    r, c = np.mgrid[0:rows, 0:cols]
-    horizontal = r * cols + c  # the side from (r, c) to (r, c + 1)
-    vertical = (rows + 1) * cols + r * (cols + 1) + c  # from (r, c) to (r + 1, c)
-    diagonal = (rows + 1) * cols + rows * (cols + 1) + r * cols + c
-    centroid = diagonal + rows * cols
-    index = np.empty((4, rows * cols, 2), dtype=np.intp)
-    # (a, b, e): sides a-b, b-e, e-a; (a, e, d): a-e, e-d, d-a
-    index[:, :, 0] = np.stack([horizontal, vertical + 1, diagonal, centroid]).reshape(4, -1)
-    index[:, :, 1] = np.stack(
-        [diagonal, horizontal + cols, vertical, centroid + rows * cols]
-    ).reshape(4, -1)
-    out = index.reshape(4, -1)
-    out.flags.writeable = False
-    return out
 
 
 def _grid_sides(

@@ -27,14 +27,8 @@ from adaproj_edge.geometry.triangles import (
     unique_edges,
 )
 from adaproj_edge.warp.adaptive import bends
-from adaproj_edge.warp.mesh import (
-    _SAMPLINGS,
-    MeshGeometry,
-    Topology,
-    _probe_index,
-    _probes,
-    planar_shapes,
-)
+from adaproj_edge.warp.mesh import MeshGeometry, Topology, planar_shapes
+from adaproj_edge.warp.sampling import SAMPLINGS, probe_index, probes
 from adaproj_edge.warp.warpmap import Grid
 
 
@@ -223,7 +217,7 @@ def test_shared_probes_are_each_triangles_crease_probes(seed: int, rows: int, co
     grid_uv += rng.uniform(-0.3, 0.3, grid_uv.shape)  # not even a tensor grid
     uv = grid_uv.reshape(-1, 2)
     want = crease_probes(uv[grid_triangles(rows, cols)])  # (T, 4, 2)
-    got = _probes(grid_uv)[_probe_index(rows, cols)]  # (4, T, 2)
+    got = probes(grid_uv)[probe_index(rows, cols)]  # (4, T, 2)
     same(got.transpose(1, 0, 2), want)
 
 
@@ -248,7 +242,7 @@ def test_a_kept_sampling_serves_every_surface_of_the_lattice(seed: int, holes: f
     grid = Grid(12, 9)
     MeshGeometry.build(first, grid)  # keeps the sampling
     kept = MeshGeometry.build(second, grid)
-    _SAMPLINGS.clear()
+    SAMPLINGS.clear()
     fresh = MeshGeometry.build(second, grid)
     for name in ("grid_uv", "points", "coords", "lengths", "shapes", "tris", "edges"):
         same(getattr(kept, name), getattr(fresh, name))
