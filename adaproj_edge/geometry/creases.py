@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.geometry.triangles import cross, triangle_normals
+from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
 
 ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, of a crease
 CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this make a crease
@@ -105,62 +105,62 @@ def unfold_creases(
     (N, 3)), whose pixel corners are ``tri_uv`` (T, 3, 2). ``probes`` (T, 4, 3): the
     surface at their :func:`crease_probes`, when the caller has sampled it already."""
     tri_pts = points[tris]
-    t_count = tris.shape[0]
-    out = tri_pts.copy()
-    nan3 = np.full((t_count, 3), np.nan)
-    unfolding = Unfolding(
-        out,
-        np.zeros(t_count, dtype=bool),
-        nan3.copy(),
-        nan3.copy(),
-        nan3.copy(),
-        nan3.copy(),
-        np.tile(np.eye(3), (t_count, 1, 1)),
-        np.zeros((t_count, 3)),
-        np.zeros(t_count),
-    )
-    n = triangle_normals(tri_pts)
-    size = np.sqrt(
-        np.linalg.norm(cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0]), axis=1)
-    )
     xs = surface.points_at(crease_probes(tri_uv)) if probes is None else probes  # (T, 4, 3)
-    dist = np.abs(np.sum((xs - tri_pts[:, :1]) * n[:, None, :], axis=2))
-    rough = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=1) > ROUGH * size
-    if not np.any(rough):
-        return unfolding
-    # the plane of each vertex: area-weighted normal of its smooth triangles
-    smooth = ~rough & np.all(np.isfinite(n), axis=1)
-    weighted = n[smooth] * size[smooth, None] ** 2  # (S, 3), added at each corner
-    corners = tris[smooth].ravel()  # (3 S,): corner k of triangle t at 3 t + k
-    acc = np.stack(
-        [
-            np.bincount(corners, np.repeat(weighted[:, c], 3), minlength=points.shape[0])
-            for c in range(3)
-        ],
-        axis=1,
+    normals, area2 = planes_first(corners_first(tri_pts))
+    return unfold_measured(tris, points, tri_pts, normals, area2, xs.transpose(2, 1, 0))
+
+
+def unfold_measured(
+    tris: IntArray,
+    points: FloatArray,
+    tri_pts: FloatArray,
+    normals: FloatArray,
+    area2: FloatArray,
+    probes: FloatArray,
+) -> Unfolding:
+    """:func:`unfold_creases` of triangles whose corners ``tri_pts`` (T, 3, 3), unit
+    normals (3, T) and twice the areas (T,) (:func:`~adaproj_edge.geometry.triangles.
+    planes_first`) and surface at the probes (3, 4, T) (component-first) are known."""
+    size = np.sqrt(area2)
+    # the probes' distances (4, T) to their triangle's plane
+    dist = np.abs(
+        (probes[0] - tri_pts[None, :, 0, 0]) * normals[0]
+        + (probes[1] - tri_pts[None, :, 0, 1]) * normals[1]
+        + (probes[2] - tri_pts[None, :, 0, 2]) * normals[2]
     )
+    rough = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=0) > ROUGH * size
+    if not np.any(rough):
+        return _nothing_folded(tri_pts)
+    # the plane of each vertex: area-weighted normal of its smooth triangles
+    smooth = np.flatnonzero(~rough & np.isfinite(normals).all(axis=0))
+    weighted = normals[:, smooth] * size[smooth] ** 2  # (3, S), added at each corner
+    corners = tris[smooth].ravel()  # (3 S,): corner k of triangle t at 3 t + k
+    n_points = points.shape[0]
+    acc = np.empty((3, n_points))
+    for axis in range(3):
+        acc[axis] = np.bincount(corners, np.repeat(weighted[axis], 3), minlength=n_points)
     with np.errstate(invalid="ignore", divide="ignore"):
-        vn = acc / np.linalg.norm(acc, axis=1, keepdims=True)
+        vn = acc / np.sqrt(dot_first(acc, acc))  # (3, N)
     # only triangles whose corners' planes differ can hold a crease (checked for all
     # rough triangles at once; the loop below then handles the few that remain)
     rough_t = np.flatnonzero(rough)
-    corner_n = vn[tris[rough_t]]  # (R, 3, 3)
+    corner_n = vn[:, tris[rough_t]]  # (3, R, 3)
     with np.errstate(invalid="ignore"):
-        differ = np.any(np.einsum("rkj,rj->rk", corner_n, corner_n[:, 0]) < CREASE_COS, axis=1)
-    cand = rough_t[differ & np.all(np.isfinite(corner_n), axis=(1, 2))]
+        differ = np.any(dot_first(corner_n, corner_n[:, :, :1]) < CREASE_COS, axis=1)
+    cand = rough_t[differ & np.isfinite(corner_n).all(axis=(0, 2))]
     if cand.size == 0:
-        return unfolding
-    lone, pair_a = _crease_groups(vn[tris[cand]])
+        return _nothing_folded(tri_pts)
+    lone, pair_a = _crease_groups(vn.T[tris[cand]])
     cand, lone, pair_a = cand[lone >= 0], lone[lone >= 0], pair_a[lone >= 0]
     # the two sides' planes, from the corners' planes; a: the side of corner 0
     pair = np.stack([(lone + 1) % 3, (lone + 2) % 3], axis=1)
     pair.sort(axis=1)
-    corner_vn, corner_pt = vn[tris[cand]], tri_pts[cand]  # (C, 3, 3)
+    corner_vn, corner_pt = vn.T[tris[cand]], tri_pts[cand]  # (C, 3, 3)
     at = np.arange(cand.size)
     n_pair, p_pair = corner_vn[at[:, None], pair], corner_pt[at[:, None], pair]  # (C, 2, 3)
     n_lone, p_lone = corner_vn[at, lone], corner_pt[at, lone]
     plane_pair = _pair_plane(n_pair, p_pair, n_lone)
-    plane_lone = (n_lone / np.linalg.norm(n_lone, axis=1, keepdims=True), p_lone)
+    plane_lone = (n_lone / np.sqrt(dot_first(n_lone.T, n_lone.T))[:, None], p_lone)
     side = pair_a[:, None]
     na = np.where(side, plane_pair[0], plane_lone[0])
     pa = np.where(side, plane_pair[1], plane_lone[1])
@@ -168,7 +168,7 @@ def unfold_creases(
     pb = np.where(side, plane_lone[1], plane_pair[1])
     # a crease only if the two planes explain the surface inside the triangle (a
     # strongly curved smooth patch, e.g. near a silhouette, is left as it is)
-    probe = xs[cand]  # (C, 4, 3)
+    probe = probes[:, :, cand].transpose(2, 1, 0)  # (C, 4, 3)
     seen = np.all(np.isfinite(probe), axis=2)
     fit = np.minimum(
         np.abs(np.einsum("cpj,cj->cp", probe - pa[:, None], na)),
@@ -178,9 +178,25 @@ def unfold_creases(
     # straight creases: the two planes explain the surface; curved ones (a curved wall
     # meeting a floor): far better than the triangle does (a smooth curved patch is
     # explained about as badly by its corners' planes as by its chord)
-    chord = np.max(np.where(np.isfinite(dist[cand]), dist[cand], 0.0), axis=1)
+    chord = np.max(np.where(np.isfinite(dist[:, cand]), dist[:, cand], 0.0), axis=0)
     straight = worst <= FIT * ROUGH * size[cand]
     keep = np.any(seen, axis=1) & (straight | (worst <= CURVED_FIT * chord))
+    if not np.any(keep):
+        return _nothing_folded(tri_pts)
+    t_count = tris.shape[0]
+    out = tri_pts.copy()
+    nan3 = np.full((t_count, 3), np.nan)
+    unfolding = Unfolding(
+        out,
+        np.zeros(t_count, dtype=bool),
+        nan3,
+        nan3.copy(),
+        nan3.copy(),
+        nan3.copy(),
+        np.broadcast_to(np.eye(3), (t_count, 3, 3)).copy(),
+        np.zeros((t_count, 3)),
+        np.zeros(t_count),
+    )
     for c in np.flatnonzero(keep):  # few: the triangles a crease runs through
         t = cand[c]
         rot, origin = _unfolding_rotation(pa[c], na[c], pb[c], nb[c])
@@ -195,6 +211,26 @@ def unfold_creases(
     return unfolding
 
 
+def _nothing_folded(tri_pts: FloatArray) -> Unfolding:
+    """The :class:`Unfolding` of triangles ``tri_pts`` (T, 3, 3) without a crease (its
+    corners are ``tri_pts`` themselves)."""
+    t_count = tri_pts.shape[0]
+    nan3 = np.full((t_count, 3), np.nan)
+    rotation = np.zeros((t_count, 3, 3))
+    rotation[:, 0, 0] = rotation[:, 1, 1] = rotation[:, 2, 2] = 1.0
+    return Unfolding(
+        tri_pts,
+        np.zeros(t_count, dtype=bool),
+        nan3,
+        nan3.copy(),
+        nan3.copy(),
+        nan3.copy(),
+        rotation,
+        np.zeros((t_count, 3)),
+        np.zeros(t_count),
+    )
+
+
 def _crease_groups(normals: FloatArray) -> tuple[IntArray, NDArray[np.bool_]]:
     """The corners, by their planes' normals (C, 3, 3), on either side of a crease.
 
@@ -204,16 +240,17 @@ def _crease_groups(normals: FloatArray) -> tuple[IntArray, NDArray[np.bool_]]:
     two planes far enough apart, or three different planes), and whether the pair is
     the side of corner 0 (C,).
     """
+    normals = normals.transpose(2, 0, 1)  # component-first (xyz, C, corner)
     pairs = np.array([(0, 1), (0, 2), (1, 2)])
-    dots = np.einsum("cpj,cpj->cp", normals[:, pairs[:, 0]], normals[:, pairs[:, 1]])
+    dots = dot_first(normals[:, :, pairs[:, 0]], normals[:, :, pairs[:, 1]])  # (C, 3)
     first = np.argmin(dots, axis=1)  # the two most different corners i, j
     i, j = pairs[first, 0], pairs[first, 1]
-    lowest = dots[np.arange(dots.shape[0]), first]
+    at = np.arange(dots.shape[0])
+    lowest = dots[at, first]
     crease = np.arccos(np.clip(lowest, -1.0, 1.0))
     k = 3 - i - j
-    at = np.arange(normals.shape[0])
-    to_i = np.einsum("cj,cj->c", normals[at, k], normals[at, i])
-    to_j = np.einsum("cj,cj->c", normals[at, k], normals[at, j])
+    to_i = dot_first(normals[:, at, k], normals[:, at, i])
+    to_j = dot_first(normals[:, at, k], normals[:, at, j])
     partner_i = to_i >= to_j
     near = np.arccos(np.clip(np.maximum(to_i, to_j), -1.0, 1.0))
     lone = np.where(partner_i, j, i)  # k joins its partner, the other stays alone
@@ -229,12 +266,12 @@ def _pair_plane(
     their mean point; but when their normals differ much (a corner on the crease itself
     has a mix of both sides' normals), the corner farthest from the other side (its
     normal ``other`` (C, 3))."""
-    n = normals.sum(axis=1)
+    n = normals[:, 0] + normals[:, 1]
     with np.errstate(invalid="ignore", divide="ignore"):  # (only used where they agree)
-        mean_n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    mean_p = points.mean(axis=1)
-    apart = np.einsum("cj,cj->c", normals[:, 0], normals[:, 1]) < SAME_SIDE_COS
-    far = np.argmin(np.einsum("ckj,cj->ck", normals, other), axis=1)
+        mean_n = n / np.sqrt(dot_first(n.T, n.T))[:, None]
+    mean_p = (points[:, 0] + points[:, 1]) / 2
+    apart = dot_first(normals[:, 0].T, normals[:, 1].T) < SAME_SIDE_COS
+    far = np.argmin(dot_first(normals.T, other.T[:, None]), axis=0)
     at = np.arange(normals.shape[0])
     return (
         np.where(apart[:, None], normals[at, far], mean_n),

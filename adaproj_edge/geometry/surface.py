@@ -17,12 +17,82 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from adaproj_edge.arrays import FloatArray
+from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import SurfaceError
 from adaproj_edge.fileio import atomic_savez, load_npz
 from adaproj_edge.geometry.projector import Projector
 
 MIN_VALID_FRACTION = 0.05
+
+
+@dataclass(frozen=True)
+class Stencil:
+    """Bilinear sampling of a lattice's depths at fixed pixels (:meth:`Surface.depth_at`).
+
+    Attributes
+    ----------
+    at : (4, N) flat indices of the four neighbours' depths in ``points.reshape(-1)``
+        (top-left, top-right, bottom-left, bottom-right).
+    weights : (4, N) their bilinear weights; ``heavy`` (4, N): weights above 1e-9 (the
+        others are left out).
+    outside : (N,) the pixel is outside the frame.
+    gx, gy, x0, y0 : (N,) lattice coordinates and the top-left neighbour (which of the
+        four is nearest).
+    shape : the pixels' array shape.
+    """
+
+    at: IntArray
+    weights: FloatArray
+    heavy: NDArray[np.bool_]
+    outside: NDArray[np.bool_]
+    gx: FloatArray
+    gy: FloatArray
+    x0: IntArray
+    y0: IntArray
+    shape: tuple[int, ...]
+
+    @classmethod
+    def of(cls, uv: FloatArray, lattice: tuple[int, int], scale: tuple[float, float]) -> Stencil:
+        """The stencil of pixels ``uv`` (..., 2) on a lattice of ``(h, w)`` nodes,
+        ``scale`` (x, y) projector pixels apart."""
+        uv = np.asarray(uv, dtype=np.float64)
+        shape = uv.shape[:-1]
+        uv = uv.reshape(-1, 2)
+        sx, sy = scale
+        h, w = lattice
+        gx = uv[:, 0] / sx
+        gy = uv[:, 1] / sy
+        inside = (gx >= -0.5) & (gx <= w - 0.5) & (gy >= -0.5) & (gy <= h - 0.5)
+        gx = np.clip(gx, 0.0, w - 1.0)
+        gy = np.clip(gy, 0.0, h - 1.0)
+        x0 = np.minimum(np.floor(gx).astype(np.intp), w - 2)
+        y0 = np.minimum(np.floor(gy).astype(np.intp), h - 2)
+        fx = gx - x0
+        fy = gy - y0
+        at = np.array([[0], [3], [3 * w], [3 * w + 3]]) + (3 * (y0 * w + x0) + 2)
+        gx1, gy1 = 1 - fx, 1 - fy
+        weights = np.stack([gx1 * gy1, fx * gy1, gx1 * fy, fx * fy])
+        return cls(at, weights, weights > 1e-9, ~inside, gx, gy, x0, y0, shape)
+
+    def depth(self, points: NDArray[np.float32]) -> FloatArray:
+        """The depths of lattice ``points`` (h, w, 3) at the stencil's pixels."""
+        zz = np.take(points.reshape(-1), self.at)  # (4, N) float32
+        seen = np.isfinite(zz)
+        ok = seen & self.heavy
+        # summed in the neighbours' order (as adding them one by one)
+        num = np.where(ok, zz * self.weights, 0.0).sum(axis=0)
+        den = np.where(ok, self.weights, 0.0).sum(axis=0)
+        bad = self.outside | (den <= 0)
+        # the nearest node, one of the four, must be valid (checked where one is not)
+        some = np.flatnonzero(~seen.all(axis=0))
+        if some.size:
+            nx = np.rint(self.gx[some]).astype(np.intp) - self.x0[some]
+            ny = np.rint(self.gy[some]).astype(np.intp) - self.y0[some]
+            bad[some] |= ~seen[2 * ny + nx, some]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out: FloatArray = num / den
+        out[bad] = np.nan
+        return out.reshape(self.shape)
 
 
 @dataclass(frozen=True)
@@ -75,7 +145,8 @@ class Surface:
     @property
     def valid_fraction(self) -> float:
         """Fraction of nodes whose ray meets the surface."""
-        return float(np.mean(self.valid))
+        valid = self.valid
+        return float(np.count_nonzero(valid) / valid.size)  # np.mean(valid), without floats
 
     def lattice_scale(self) -> tuple[float, float]:
         """Projector pixels per lattice step along x and y."""
@@ -88,36 +159,12 @@ class Surface:
         Bilinear in the lattice, using only valid neighbours; NaN where the nearest
         node is invalid or ``uv`` is outside the frame.
         """
-        uv = np.asarray(uv, dtype=np.float64)
-        sx, sy = self.lattice_scale()
-        h, w = self.shape
-        gx = uv[..., 0] / sx
-        gy = uv[..., 1] / sy
-        inside = (gx >= -0.5) & (gx <= w - 0.5) & (gy >= -0.5) & (gy <= h - 0.5)
-        gx = np.clip(gx, 0.0, w - 1.0)
-        gy = np.clip(gy, 0.0, h - 1.0)
-        x0 = np.minimum(np.floor(gx).astype(np.intp), w - 2)
-        y0 = np.minimum(np.floor(gy).astype(np.intp), h - 2)
-        fx = gx - x0
-        fy = gy - y0
-        z = self.points[..., 2].astype(np.float64)
-        num = np.zeros(gx.shape)
-        den = np.zeros(gx.shape)
-        for dy, dx, wgt in (
-            (0, 0, (1 - fx) * (1 - fy)),
-            (0, 1, fx * (1 - fy)),
-            (1, 0, (1 - fx) * fy),
-            (1, 1, fx * fy),
-        ):
-            zz = z[y0 + dy, x0 + dx]
-            ok = np.isfinite(zz) & (wgt > 1e-9)
-            num += np.where(ok, zz * wgt, 0.0)
-            den += np.where(ok, wgt, 0.0)
-        nearest = z[np.rint(gy).astype(np.intp), np.rint(gx).astype(np.intp)]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            out = num / den
-        out[~inside | ~np.isfinite(nearest) | (den <= 0)] = np.nan
-        return out
+        return self.stencil(uv).depth(self.points)
+
+    def stencil(self, uv: FloatArray) -> Stencil:
+        """What :meth:`depth_at` ``uv`` computes from ``uv`` alone: the same for every
+        surface of this lattice (shape, projector), so a caller may keep it."""
+        return Stencil.of(uv, self.shape, self.lattice_scale())
 
     def points_at(self, uv: FloatArray) -> FloatArray:
         """3D points (..., 3) on the rays of pixels ``uv`` (..., 2); NaN where none."""

@@ -25,10 +25,12 @@ needed. Along a column or row that needs no more lines nothing is added.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.surface import Surface
@@ -118,8 +120,8 @@ def bends(
     # component planes (x, y, z), each a contiguous 2D array: fast elementwise sums
     X = np.moveaxis(surface.points[::ky, ::kx], -1, 0).astype(np.float32)
     h, w = surface.shape
-    xs = np.arange(0, w, kx) * sx  # the nodes' pixel positions
-    ys = np.arange(0, h, ky) * sy
+    xs = np.arange(0, w, kx, dtype=np.float64) * sx  # the nodes' pixel positions
+    ys = np.arange(0, h, ky, dtype=np.float64) * sy
     dx = (X[:, 1:-1, 2:] - X[:, 1:-1, :-2]) / 2  # per sample step
     dy = (X[:, 2:, 1:-1] - X[:, :-2, 1:-1]) / 2
     ddx = X[:, 1:-1, 2:] - 2 * X[:, 1:-1, 1:-1] + X[:, 1:-1, :-2]
@@ -143,27 +145,66 @@ def bends(
     if not kinks:  # a crease is one or two samples wide: curvature bends over three
         bx = np.pad(np.fmin(np.fmin(bx[:, :-2], bx[:, 1:-1]), bx[:, 2:]), ((0, 0), (1, 1)))
         by = np.pad(np.fmin(np.fmin(by[:-2], by[1:-1]), by[2:]), ((1, 1), (0, 0)))
-    cols, rows = grid_uv[0, :, 0], grid_uv[:, 0, 1]
-    ci = np.clip(np.searchsorted(cols, xs[1:-1], side="right") - 1, 0, cols.size - 2)
-    ri = np.clip(np.searchsorted(rows, ys[1:-1], side="right") - 1, 0, rows.size - 2)
-    # the cell's size along x (y) in samples: its width (height) over the sample step
-    along_x = bx * (np.diff(cols)[ci] / (kx * sx))[None, :]
-    along_y = by * (np.diff(rows)[ri] / (ky * sy))[:, None]
+    cells = _cells(grid_uv[0, :, 0], grid_uv[:, 0, 1], xs[1:-1], ys[1:-1], kx * sx, ky * sy)
+    n_rows, n_cols = cells.has.shape
+    if not bx.size:
+        return np.zeros((n_rows, n_cols)), np.zeros((n_rows, n_cols))
     out = []
-    for per in (along_x, along_y):
-        worst = np.zeros((rows.size - 1, cols.size - 1))
-        # samples of a cell are contiguous along both axes: a max per block
-        per = np.where(np.isfinite(per), per, 0.0)
-        c_start = np.searchsorted(ci, np.arange(cols.size - 1))
-        r_start = np.searchsorted(ri, np.arange(rows.size - 1))
-        has_c = np.isin(np.arange(cols.size - 1), ci)
-        has_r = np.isin(np.arange(rows.size - 1), ri)
-        if per.size:
-            block = np.maximum.reduceat(per, np.minimum(c_start, per.shape[1] - 1), axis=1)
-            block = np.maximum.reduceat(block, np.minimum(r_start, per.shape[0] - 1), axis=0)
-            worst = np.where(has_r[:, None] & has_c[None, :], block, 0.0)
-        out.append(worst)
+    for per in (bx * cells.size_x[None, :], by * cells.size_y[:, None]):
+        # samples of a cell are contiguous along both axes: a max per block (rows first,
+        # then columns on the transpose: long runs, few calls), 0 where none; a last
+        # row and column of zeros end the last blocks (the bends are >= 0)
+        padded = np.zeros((per.shape[0] + 1, per.shape[1] + 1))
+        padded[:-1, :-1] = np.where(np.isfinite(per), per, 0.0)
+        block = np.maximum.reduceat(padded, cells.row_start, axis=0)
+        block = np.maximum.reduceat(block.T, cells.col_start, axis=0).T
+        out.append(np.where(cells.has, block, 0.0))
     return out[0], out[1]
+
+
+@dataclass(frozen=True)
+class _Cells:
+    """Which grid cell each sample falls in (:func:`bends`), for a grid's lines and a
+    lattice's samples."""
+
+    size_x: FloatArray  # (columns of samples,) the cell's width in samples
+    size_y: FloatArray  # (rows of samples,)
+    col_start: IntArray  # (grid columns,) each cell's first sample column (or the next's)
+    row_start: IntArray  # (grid rows,)
+    has: NDArray[np.bool_]  # (grid rows, grid columns) the cell holds a sample
+
+
+_CELLS: OrderedDict[tuple[bytes | float, ...], _Cells] = OrderedDict()
+
+
+def _cells(
+    cols: FloatArray, rows: FloatArray, xs: FloatArray, ys: FloatArray, step_x: float, step_y: float
+) -> _Cells:
+    """The :class:`_Cells` of grid lines ``cols``, ``rows`` and samples at ``xs``,
+    ``ys`` (pixels), ``step_x``, ``step_y`` pixels apart; the last few kept (a grid and
+    a lattice make the same ones on every surface)."""
+    key = (cols.tobytes(), rows.tobytes(), xs.tobytes(), ys.tobytes(), step_x, step_y)
+    out = _CELLS.get(key)
+    if out is not None:
+        _CELLS.move_to_end(key)
+        return out
+    n_cols, n_rows = cols.size - 1, rows.size - 1
+    ci = np.clip(np.searchsorted(cols, xs, side="right") - 1, 0, n_cols - 1)
+    ri = np.clip(np.searchsorted(rows, ys, side="right") - 1, 0, n_rows - 1)
+    has_c, has_r = np.zeros(n_cols, bool), np.zeros(n_rows, bool)
+    has_c[ci] = True
+    has_r[ri] = True
+    out = _Cells(
+        np.diff(cols)[ci] / step_x,
+        np.diff(rows)[ri] / step_y,
+        np.searchsorted(ci, np.arange(n_cols)),
+        np.searchsorted(ri, np.arange(n_rows)),
+        has_r[:, None] & has_c[None, :],
+    )
+    _CELLS[key] = out
+    while len(_CELLS) > 8:
+        _CELLS.popitem(last=False)
+    return out
 
 
 def _limits(bx: FloatArray, by: FloatArray) -> FloatArray:
@@ -174,14 +215,20 @@ def _limits(bx: FloatArray, by: FloatArray) -> FloatArray:
 
 
 def refine_grid(
-    surface: Surface, grid: Grid, curved: IntArray | None = None, budget: int = BUDGET
+    surface: Surface,
+    grid: Grid,
+    curved: IntArray | None = None,
+    budget: int = BUDGET,
+    base: FloatArray | None = None,
 ) -> Refinement:
     """The lines of ``grid``, with columns and rows split where ``surface`` needs it.
 
     ``curved`` : (rows * cols,) cell indices a curved crease crosses (a mesh of the base
     grid knows them: :attr:`~adaproj_edge.warp.mesh.MeshGeometry.curved_cells`).
+    ``base`` : the grid's vertices (:meth:`Grid.vertices`), when the caller has them.
     """
-    base = grid.vertices(surface.projector)
+    if base is None:
+        base = grid.vertices(surface.projector)
     none = Refinement(
         base[0, :, 0], base[:, 0, 1], np.ones(grid.cols, np.intp), np.ones(grid.rows, np.intp)
     )
@@ -233,7 +280,7 @@ def adaptive_mesh(
     mesh = MeshGeometry.build(surface, grid, cache)
     if not refine:
         return mesh, {}
-    refinement = refine_grid(surface, grid, mesh.curved_cells)
+    refinement = refine_grid(surface, grid, mesh.curved_cells, base=mesh.grid_uv)
     if not refinement.refined:
         return mesh, {}
     mesh = MeshGeometry.build(surface, refinement.grid, cache, refinement.grid_uv)

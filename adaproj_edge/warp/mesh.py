@@ -14,14 +14,16 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
-from adaproj_edge.geometry.creases import crease_probes, unfold_creases
+from adaproj_edge.geometry.creases import unfold_measured
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import (
-    conformal_coords,
     grid_triangles,
-    triangle_normals,
+    planes_first,
+    shapes_first,
+    triangle_shapes,
     unique_edges,
 )
+from adaproj_edge.warp.sampling import Sampling, base_sampling, probe_index
 from adaproj_edge.warp.warpmap import Grid
 
 T = TypeVar("T")
@@ -50,17 +52,25 @@ class Topology:
     memo: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
-    def from_triangles(cls, cand: IntArray, rows: IntArray, n_vertices: int) -> Topology:
+    def from_triangles(
+        cls, cand: IntArray, rows: IntArray, n_vertices: int, grid_cols: int | None = None
+    ) -> Topology:
         """The topology of triangles ``cand`` (T, 3) (grid vertex indices; ``rows`` (T,)
-        their indices among all grid triangles) of a grid of ``n_vertices``."""
+        their indices among all grid triangles) of a grid of ``n_vertices``.
+
+        ``grid_cols``: the triangles are those of :func:`grid_triangles` for a grid of
+        that many columns, whose sides are known without sorting them."""
         used = np.zeros(n_vertices, dtype=bool)
         used[cand.ravel()] = True
         index = np.full(n_vertices, -1, dtype=np.intp)
         verts = np.flatnonzero(used)
         index[verts] = np.arange(verts.size)
         tris = index[cand]
-        e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
-        edges, inverse, counts = unique_edges(e, max(int(verts.size), 1))
+        if grid_cols is None:
+            e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+            edges, inverse, counts = unique_edges(e, max(int(verts.size), 1))
+        else:
+            edges, inverse, counts = _grid_sides(cand, index, grid_cols, n_vertices)
         return cls(cand, rows, used, index, verts, tris, edges, inverse, edges[counts == 1])
 
     def remember(self, name: str, make: Callable[[], T]) -> T:
@@ -214,24 +224,30 @@ class MeshGeometry:
         ``grid_uv`` (rows + 1, cols + 1, 2) places the vertices elsewhere than
         :meth:`Grid.vertices` (a coarse grid on a subset of a fine grid's vertices)."""
         if grid_uv is None:
-            grid_uv = grid.vertices(surface.projector)
+            sampling = base_sampling(grid, surface)
+            grid_uv = sampling.grid_uv
         elif grid_uv.shape != (grid.rows + 1, grid.cols + 1, 2):
             raise ValueError(f"grid_uv {grid_uv.shape} does not fit grid {grid}")
+        else:
+            sampling = Sampling.of(surface, grid_uv)
         all_tris = grid_triangles(grid.rows, grid.cols)
         uv = grid_uv.reshape(-1, 2)
         # the surface at the vertices and at the crease probes of every triangle, at once
-        sampled = surface.points_at(
-            np.concatenate([uv, crease_probes(uv[all_tris]).reshape(-1, 2)])
-        )
+        sampled = sampling.points(surface)
         pts = sampled[: uv.shape[0]]
-        probes = sampled[uv.shape[0] :].reshape(all_tris.shape[0], -1, 3)
-        ok = np.all(np.isfinite(pts[all_tris]).all(axis=2), axis=1)
-        normals = triangle_normals(pts[all_tris[ok]])
+        # each triangle's probes (3, 4, T), component-first
+        probes = np.take(sampled[uv.shape[0] :].T, probe_index(grid.rows, grid.cols), axis=1)
+        # every grid triangle's corners, normal and area (NaN where not all seen)
+        corners = np.take(pts.T, all_tris.T, axis=1)  # (3, 3, T) component-first
+        normals, area2 = planes_first(corners)
         # A triangle must face the projector (it was seen) and not be degenerate.
-        facing = np.all(np.isfinite(normals), axis=1)
-        facing &= np.sum(normals * pts[all_tris[ok]].mean(axis=1), axis=1) < 0
-        keep = np.zeros(all_tris.shape[0], dtype=bool)
-        keep[np.flatnonzero(ok)[facing]] = True
+        centre = (corners[:, 0] + corners[:, 1] + corners[:, 2]) / 3
+        with np.errstate(invalid="ignore"):
+            keep = (
+                (normals[0] * centre[0] + normals[1] * centre[1] + normals[2] * centre[2] < 0)
+                & np.isfinite(normals).all(axis=0)
+                & np.isfinite(corners).all(axis=(0, 1))
+            )
         if keep.sum() < MIN_TRIANGLES:
             raise WarpError(
                 f"only {int(keep.sum())} grid triangles meet the surface; point the projector "
@@ -240,39 +256,61 @@ class MeshGeometry:
 
         def make() -> Topology:
             rows = _largest_component(all_tris, np.flatnonzero(keep), pts.shape[0])
-            return Topology.from_triangles(all_tris[rows], rows, pts.shape[0])
+            return Topology.from_triangles(all_tris[rows], rows, pts.shape[0], grid.cols)
 
         key = f"{grid.cols}x{grid.rows}:".encode() + np.packbits(keep).tobytes()
         topo = make() if cache is None else cache.topology(key, make)
-        cand = topo.cand
-        unfolding = unfold_creases(surface, uv[cand], cand, pts, probes[topo.rows])
-        tri_pts = unfolding.points
-        coords = conformal_coords(tri_pts)
-        # edge lengths as the (unfolded) triangles have them; an edge shared by two
-        # triangles gets the mean of their two values
-        tri_len = np.linalg.norm(tri_pts - np.roll(tri_pts, -1, axis=1), axis=2)  # edge k: k->k+1
+        rows = topo.rows
+        unfolding = unfold_measured(
+            topo.cand, pts, pts[topo.cand], normals[:, rows], area2[rows], probes[:, :, rows]
+        )
+        mine, mine_n = corners[:, :, rows], normals[:, rows]
+        folded = np.flatnonzero(unfolding.folded)
+        if folded.size:  # their unfolded corners, and planes
+            mine[:, :, folded] = unfolding.points[folded].transpose(2, 1, 0)
+            mine_n[:, folded] = planes_first(mine[:, :, folded])[0]
+        coords, sides, shapes = shapes_first(mine, mine_n)
+        # edge lengths as the (unfolded) triangles have them (side k: k -> k + 1); an
+        # edge shared by two triangles gets the mean of their two values
         n_edges = topo.edges.shape[0]
-        sums = np.bincount(topo.inverse, weights=tri_len.T.ravel(), minlength=n_edges)
+        sums = np.bincount(topo.inverse, weights=sides.ravel(), minlength=n_edges)
         counts = np.bincount(topo.inverse, minlength=n_edges)
         curved = unfolding.folded & (unfolding.softness > 0)
-        return cls(grid, grid_uv, pts, topo, coords, sums / counts, planar_shapes(tri_pts), curved)
+        return cls(grid, grid_uv, pts, topo, coords, sums / counts, shapes, curved)
 
 
 def planar_shapes(tri_pts: FloatArray) -> FloatArray:
     """Triangles (T, 3, 3) in 2D frames of their own planes (T, 3, 2): corner 0 at the
     origin, corner 1 on the +x axis, corner 2 on the side the content's y axis has
     (content y points down, as for the projector's pixels)."""
-    e1 = tri_pts[:, 1] - tri_pts[:, 0]
-    e2 = tri_pts[:, 2] - tri_pts[:, 0]
-    l1 = np.linalg.norm(e1, axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        x2 = np.sum(e1 * e2, axis=1) / l1
-    y2 = np.sqrt(np.maximum(np.sum(e2 * e2, axis=1) - x2 * x2, 0.0))
-    out = np.zeros((tri_pts.shape[0], 3, 2))
-    out[:, 1, 0] = l1
-    out[:, 2, 0] = x2
-    out[:, 2, 1] = y2
-    return out
+    return triangle_shapes(tri_pts)[2]
+
+
+def _grid_sides(
+    cand: IntArray, index: IntArray, cols: int, n_vertices: int
+) -> tuple[IntArray, IntArray, IntArray]:
+    """:func:`unique_edges` of the sides (k -> k + 1, k-major) of grid triangles ``cand``
+    (T, 3) (grid vertex indices) of a grid of ``cols`` columns, whose vertices have the
+    compact indices ``index`` (N,) (increasing with the grid index).
+
+    A grid triangle's side from grid vertex ``lo`` (the lower) is horizontal, vertical or
+    diagonal (``hi - lo`` is 1, cols + 1 or cols + 2): its number ``3 lo + kind`` orders
+    the sides as their compact (lo, hi) pairs do, so marking the numbers present (no sort)
+    gives the sorted unique edges."""
+    a = cand.T
+    b = a[[1, 2, 0]]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    span = hi - lo
+    number = (3 * lo + (span > 1) + (span > cols + 1)).ravel()
+    present = np.zeros(3 * n_vertices, dtype=bool)
+    present[number] = True
+    inverse = (np.cumsum(present) - 1)[number]
+    found = np.flatnonzero(present)
+    low = found // 3
+    high = low + np.array([1, cols + 1, cols + 2])[found % 3]
+    edges = np.stack([index[low], index[high]], axis=1)
+    counts = np.bincount(inverse, minlength=found.size)
+    return edges, inverse, counts
 
 
 def _largest_component(all_tris: IntArray, rows: IntArray, n_vertices: int) -> IntArray:
