@@ -13,6 +13,7 @@ Unknowns may be fixed (gauge constraints): their columns move to the right-hand 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -169,6 +170,15 @@ class BandedLeastSquares:
         return x
 
 
+@functools.lru_cache(maxsize=8)
+def _pairs(k: int) -> tuple[IntArray, IntArray]:
+    """The index pairs (a <= b) of ``k`` coefficients (``np.triu_indices``, kept)."""
+    a, b = np.triu_indices(k)
+    a.flags.writeable = False
+    b.flags.writeable = False
+    return a, b
+
+
 class ComplexLeastSquares:
     """Solve ``min_z sum_r w_r |a_r . z - c_r|^2`` over complex unknowns, fixed row pattern.
 
@@ -199,33 +209,38 @@ class ComplexLeastSquares:
         self.nf = int(free.size)
         if self.nf == 0:
             raise WarpError("no free unknowns in the warp system")
+        k = cols.shape[1]
         self.cols = np.where(cols >= 0, cols, n)  # slot n: unused (value 0, never fixed)
         fc = free_index[self.cols]
-        self.fc = fc
-        self.ok_rows = fc >= 0
-        # the row of each coefficient of a free unknown (in row order)
-        self.entry_rows = np.nonzero(self.ok_rows)[0]
-        self.entry_at = np.flatnonzero(self.ok_rows)  # where they are in (m, k) order
+        # each coefficient of a free unknown: where it is in (m, k) order, its row, its
+        # free index (in row order)
+        self.entry_at = np.flatnonzero(fc >= 0)
+        self.entry_rows = self.entry_at // k
         self.entry_free = fc.reshape(-1)[self.entry_at]
         # rows that see a fixed unknown (a used coefficient that has no free index)
         fixed_entry = np.flatnonzero((fc < 0) & (self.cols < n))
-        self.fixed_rows = np.unique(fixed_entry // cols.shape[1])
-        self.pair_a, self.pair_b = np.triu_indices(cols.shape[1])
-        i, j = fc[:, self.pair_a], fc[:, self.pair_b]
-        ok = (i >= 0) & (j >= 0)
+        self.fixed_rows = np.unique(fixed_entry // k)
+        # the coefficient pairs of each row (a <= b) that land in the band (both free),
+        # in (row, pair) order: their row, their place in the band's storage and their
+        # two coefficients as flat indices of the (m, k) values
+        pair_a, pair_b = _pairs(k)
+        i = np.take(fc, pair_a, axis=1).reshape(-1)
+        j = np.take(fc, pair_b, axis=1).reshape(-1)
+        used = np.flatnonzero(np.minimum(i, j) >= 0)
+        i, j = i[used], j[used]
         lo, hi = np.minimum(i, j), np.maximum(i, j)
-        self.swap = i > j  # the pair lands below the diagonal: conjugate its product
-        # two coefficients of one unknown add twice the real part of their product
-        self.twice_at = np.flatnonzero((i == j) & (self.pair_a != self.pair_b)[None, :])
-        band = int(np.max(np.where(ok, hi - lo, 0))) if ok.any() else 0
-        self.band = band
+        gap = hi - lo
+        self.band = band = int(gap.max()) if gap.size else 0
         self.dump = (band + 1) * self.nf
-        flat = np.where(ok, (band + lo - hi) * self.nf + hi, self.dump).ravel()
-        # the coefficient pairs that land in the band, in (row, pair) order: where, their
-        # row and their place in the band's storage
-        self.used_at = np.flatnonzero(flat < self.dump)
-        self.used_rows = self.used_at // self.pair_a.size
-        self.used_flat = flat[self.used_at]
+        self.used_flat = (band - gap) * self.nf + hi
+        self.used_rows = rows = used // pair_a.size
+        pair = used - rows * pair_a.size
+        self.used_a = rows * k + pair_a[pair]
+        self.used_b = rows * k + pair_b[pair]
+        # a pair below the diagonal adds the conjugate of its product
+        self.used_sign = 1.0 - 2.0 * (i > j)
+        # two coefficients of one unknown add twice the real part of their product
+        self.used_twice = np.flatnonzero((i == j) & (pair_a != pair_b)[pair])
         # the coupling of the free unknowns to the fixed ones: per coefficient pair of a
         # fixed-seeing row, where its product lands in the (nf, n_fixed) matrix
         self.fixed_list = np.flatnonzero(fixed)
@@ -247,15 +262,15 @@ class ComplexLeastSquares:
         """Factor ``A^H W A`` for coefficients ``vals`` (m, k) and row weights ``weights``
         (m,); nothing to do when both are the ones last factored."""
         if self._vals is not vals:
-            # (np.take: C-ordered, so that the flat views below are views)
-            prod = np.conj(np.take(vals, self.pair_a, axis=1))
-            prod *= np.take(vals, self.pair_b, axis=1)
-            np.conjugate(prod, out=prod, where=self.swap)
-            if self.twice_at.size:
-                twice = prod.reshape(-1)[self.twice_at]
-                prod.reshape(-1)[self.twice_at] = 2 * twice.real
-            used = np.take(prod, self.used_at)  # the products that land in the band
-            self._prod = (np.ascontiguousarray(used.real), np.ascontiguousarray(used.imag))
+            # the products of the coefficient pairs that land in the band
+            prod = np.conj(np.take(vals, self.used_a))
+            prod *= np.take(vals, self.used_b)
+            re = np.ascontiguousarray(prod.real)
+            im = prod.imag * self.used_sign  # conjugated where the pair is swapped
+            if self.used_twice.size:
+                re[self.used_twice] *= 2.0
+                im[self.used_twice] = 0.0
+            self._prod = (re, im)
             self._vals = vals
         elif self._weights is not None and np.array_equal(self._weights, weights):
             return
