@@ -97,23 +97,29 @@ def boundary_loops(edges: IntArray) -> list[IntArray] | None:
 
 
 class Segments:
-    """Segments p0-p1 (E, 2) held as the per-edge arrays the L-infinity distance needs
-    (the searches evaluate it for thousands of point-segment pairs per placement)."""
+    """Segments p0-p1 (E, 2) held as the per-edge constants the L-infinity distance needs
+    (the searches evaluate it for thousands of point-segment pairs per placement).
+
+    The square of half-side r centred at c meets a segment exactly when their
+    projections overlap on the square's two axes and on the segment's normal (they are
+    convex: a separating line, if any, is parallel to a side of one of them). So the
+    distance - the least such r - is the largest of three gaps: from c to the segment's
+    x range, to its y range, and along its normal ``n`` to its line, the last divided by
+    ``|n_x| + |n_y|`` (the square's half-width along ``n`` per unit of r).
+    """
 
     def __init__(self, p0: FloatArray, p1: FloatArray) -> None:
         self.p0, self.p1 = p0, p1
-        self.x0 = np.ascontiguousarray(p0[:, 0])
-        self.y0 = np.ascontiguousarray(p0[:, 1])
-        self.dx = np.ascontiguousarray(p1[:, 0] - p0[:, 0])
-        self.dy = np.ascontiguousarray(p1[:, 1] - p0[:, 1])
-        # where |a_x + t d_x| = |a_y + t d_y| (two lines); a zero denominator gives
-        # t = 0 (num / inf), an end already among the candidates
-        self.den = [self._safe(self.dx - self.dy), self._safe(self.dx + self.dy)]
-
-    @staticmethod
-    def _safe(den: FloatArray) -> FloatArray:
-        out: FloatArray = np.where(np.abs(den) > 1e-300, den, np.inf)
-        return out
+        lo, hi = np.minimum(p0, p1), np.maximum(p0, p1)
+        self.mx = 0.5 * (lo[:, 0] + hi[:, 0])  # the x range: mid-point, half-width
+        self.hx = 0.5 * (hi[:, 0] - lo[:, 0])
+        self.my = 0.5 * (lo[:, 1] + hi[:, 1])
+        self.hy = 0.5 * (hi[:, 1] - lo[:, 1])
+        d = p1 - p0
+        s = np.abs(d[:, 0]) + np.abs(d[:, 1])
+        s = np.where(s > 0, s, np.inf)  # a point: no normal, the ranges alone
+        self.normal = np.stack([-d[:, 1] / s, d[:, 0] / s])  # (2, E), scaled by 1 / s
+        self.offset = self.normal[0] * p0[:, 0] + self.normal[1] * p0[:, 1]
 
     def subset(self, keep: NDArray[np.bool_]) -> Segments:
         """The segments where ``keep`` (E,) holds."""
@@ -123,20 +129,16 @@ class Segments:
         """L-infinity distance (N, E) from each of the points ``c`` (..., 2) (N of them)
         to each segment."""
         c = c.reshape(-1, 2)
-        ax = self.x0[None, :] - c[:, 0:1]  # (N, E): segment start relative to c
-        ay = self.y0[None, :] - c[:, 1:2]
-        dx, dy = self.dx, self.dy
-        # f(t) = max(|a_x + t d_x|, |a_y + t d_y|) is convex and piecewise linear in t:
-        # its minimum over [0, 1] is at an end or where |a_x + t d_x| = |a_y + t d_y|.
-        best = np.maximum(np.abs(ax), np.abs(ay))
-        np.minimum(best, np.maximum(np.abs(ax + dx), np.abs(ay + dy)), out=best)
-        for num, den in ((ay - ax, self.den[0]), (-(ax + ay), self.den[1])):
-            t = num / den
-            np.clip(t, 0.0, 1.0, out=t)
-            fx = np.abs(ax + t * dx)
-            np.maximum(fx, np.abs(ay + t * dy), out=fx)
-            np.minimum(best, fx, out=best)
-        return best
+        out = np.abs(c[:, 0:1] - self.mx)
+        out -= self.hx
+        gap = np.abs(c[:, 1:2] - self.my)
+        gap -= self.hy
+        np.maximum(out, gap, out=out)
+        gap = c @ self.normal
+        gap -= self.offset
+        np.abs(gap, out=gap)
+        np.maximum(out, gap, out=out)
+        return out
 
     def clearance(self, c: FloatArray) -> FloatArray:
         """L-infinity distance from points ``c`` (..., 2) to the nearest segment: (...)."""
