@@ -150,14 +150,14 @@ def _raster_start(
     v: FloatArray,
     tris: IntArray,
     resolution: int,
+    bounds: tuple[FloatArray, FloatArray],
     boundary: IntArray | None = None,
     loops: list[IntArray] | None = None,
 ) -> tuple[FloatArray, float]:
-    """Centre (2,) of the largest square in a raster of the region, and the cell size
-    (``loops``: :func:`boundary_loops` of ``boundary`` when known, [] when they do not
-    chain simply)."""
-    lo = v.min(axis=0)
-    hi = v.max(axis=0)
+    """Centre (2,) of the largest square in a raster of the region (``bounds``: its
+    lowest and highest x, y), and the cell size (``loops``: :func:`boundary_loops` of
+    ``boundary`` when known, [] when they do not chain simply)."""
+    lo, hi = bounds
     extent = float(np.max(hi - lo))
     if not np.isfinite(extent) or extent <= 0:
         raise WarpError("the warped mesh has no area")
@@ -171,7 +171,7 @@ def _raster_start(
     if loops:  # the region's outline (holes included: filled even-odd)
         cv2.fillPoly(mask, [q[loop] for loop in loops], 1, lineType=cv2.LINE_8, shift=_SHIFT)
     else:
-        cv2.fillPoly(mask, list(q[tris]), 1, lineType=cv2.LINE_8, shift=_SHIFT)
+        cv2.fillPoly(mask, list(np.take(q, tris, axis=0)), 1, lineType=cv2.LINE_8, shift=_SHIFT)
     dist = cv2.distanceTransform(mask, cv2.DIST_C, 3)
     _, best, _, loc = cv2.minMaxLoc(dist)
     if best < 1:
@@ -218,10 +218,15 @@ def inscribed_rectangle(
         raise WarpError("no surface triangles to place the content on")
     q = v * np.array([1.0, aspect])  # the wanted rectangle becomes a square
     edges = boundary_edges(tris) if boundary is None else boundary
-    p0, p1 = q[edges[:, 0]], q[edges[:, 1]]
+    # (np.take, and reductions along rows of q.T: several times quicker than q[index]
+    # and reductions down the columns of q at these sizes)
+    p0, p1 = np.take(q, edges[:, 0], axis=0), np.take(q, edges[:, 1], axis=0)
     segs = Segments(p0, p1)
-    extent = float(np.max(np.ptp(q, axis=0)))
+    qt = np.ascontiguousarray(q.T)
+    bounds = qt.min(axis=1), qt.max(axis=1)
+    extent = float(np.max(bounds[1] - bounds[0]))
     tol = TOLERANCE * extent
+    region = _Triangles(qt, tris)
     sides = side_directions(p1 - p0)
     directions = np.concatenate([_DIRECTIONS, sides, -sides])
     pattern = _SCALES[:, None, None] * directions[None]  # (4, 12, 2)
@@ -230,15 +235,15 @@ def inscribed_rectangle(
         c = np.asarray(start, dtype=np.float64) * np.array([1.0, aspect])
         step = 0.002 * extent  # a warm start: the rectangle moves little
         r = float(segs.clearance(c))
-        if not _inside(c, q, tris):
+        if not region.inside(c):
             r = -1.0
     if r <= 0:
-        c, step = _raster_start(q, tris, resolution, edges, loops)
+        c, step = _raster_start(q, tris, resolution, bounds, edges, loops)
         r = float(segs.clearance(c))
     c, r = _climb(c, r, step, tol, segs, pattern)
     if near > 0:
-        cc, rc = _centre(c, (1.0 - near) * r, _centroid(q, tris), tol, segs, pattern)
-        if _inside(cc, q, tris):  # (the clearance alone does not tell in from out)
+        cc, rc = _centre(c, (1.0 - near) * r, region.centroid(), tol, segs, pattern)
+        if region.inside(cc):  # (the clearance alone does not tell in from out)
             c, r = cc, rc
     return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
 
@@ -299,33 +304,26 @@ def side_directions(d: FloatArray, bins: int = 180) -> FloatArray:
     """The two dominant directions (2, 2) of segments ``d`` (E, 2): the length-weighted
     peaks of their angle histogram (modulo 180 degrees, the second at least 20 degrees
     from the first), each the weighted mean direction of its peak's segments."""
-    length = np.linalg.norm(d, axis=1)
-    angle = np.mod(np.arctan2(d[:, 1], d[:, 0]), np.pi)
-    k = np.minimum((angle / np.pi * bins).astype(int), bins - 1)
+    dx, dy = d[:, 0], d[:, 1]
+    length = np.sqrt(dx * dx + dy * dy)
+    angle = np.mod(np.arctan2(dy, dx), np.pi)
+    k = np.minimum((angle / np.pi * bins).astype(np.intp), bins - 1)
     hist = np.bincount(k, weights=length, minlength=bins)
-    smooth = hist + np.roll(hist, 1) + np.roll(hist, -1)
+    ring = np.concatenate([hist[-1:], hist, hist[:1]])
+    smooth = hist + ring[:-2] + ring[2:]  # each bin with its two neighbours
     first = int(np.argmax(smooth))
-    gap = np.abs((np.arange(bins) - first + bins // 2) % bins - bins // 2)
-    second = int(np.argmax(np.where(gap >= bins // 9, smooth, -1.0)))
-    out = []
-    for b in (first, second):
-        near = np.abs((k - b + bins // 2) % bins - bins // 2) <= 1
-        # double the angles so that directions 180 degrees apart add up
-        z = np.sum(length[near] * np.exp(2j * angle[near]))
+    half = bins // 2
+    apart = bins // 9  # the second peak's least distance from the first, in bins
+    smooth[np.arange(first - apart + 1, first + apart) % bins] = -1.0
+    second = int(np.argmax(smooth))
+    # double the angles so that directions 180 degrees apart add up
+    z2 = length * np.exp(2j * angle)
+    out = np.empty((2, 2))
+    for i, b in enumerate((first, second)):
+        near = np.abs((k - b + half) % bins - half) <= 1
+        z = complex(np.sum(z2[near]))
         a = 0.5 * np.angle(z) if abs(z) > 0 else (b + 0.5) * np.pi / bins
-        out.append([np.cos(a), np.sin(a)])
-    return np.array(out)
-
-
-def _centroid(v: FloatArray, tris: IntArray) -> FloatArray:
-    """Area centroid (2,) of the union of the triangles ``tris`` over ``v``."""
-    a, b, d = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
-    area = np.abs(
-        (b[:, 0] - a[:, 0]) * (d[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (d[:, 0] - a[:, 0])
-    )
-    out: FloatArray = (area[:, None] * (a + b + d)).sum(axis=0) / (
-        3.0 * max(float(area.sum()), 1e-300)
-    )
+        out[i] = np.cos(a), np.sin(a)
     return out
 
 
@@ -356,15 +354,27 @@ def _centre(
     return c, r
 
 
-def _inside(c: FloatArray, v: FloatArray, tris: IntArray) -> bool:
-    """Whether point ``c`` lies in one of the triangles."""
-    a, b, d = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
+class _Triangles:
+    """The triangles ``tris`` (T, 3) over vertices ``vt`` (2, n) (x row, y row), their
+    corners and sides gathered once for the tests of a placement (held corner by corner,
+    (3, T): reductions over the three run along rows, quick)."""
 
-    def side(p: FloatArray, q: FloatArray) -> FloatArray:
-        out: FloatArray = (q[:, 0] - p[:, 0]) * (c[1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (
-            c[0] - p[:, 0]
-        )
-        return out
+    def __init__(self, vt: FloatArray, tris: IntArray) -> None:
+        corners = np.ascontiguousarray(tris.T)
+        self.x, self.y = np.take(vt[0], corners), np.take(vt[1], corners)  # (3, T)
+        turn = [1, 2, 0]
+        self.ex, self.ey = self.x[turn] - self.x, self.y[turn] - self.y  # sides
 
-    s1, s2, s3 = side(a, b), side(b, d), side(d, a)
-    return bool(np.any(((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))))
+    def inside(self, c: FloatArray) -> bool:
+        """Whether point ``c`` (2,) lies in one of the triangles."""
+        s = self.ex * (c[1] - self.y)
+        s -= self.ey * (c[0] - self.x)
+        left, right = s >= 0, s <= 0
+        return bool(np.any((left[0] & left[1] & left[2]) | (right[0] & right[1] & right[2])))
+
+    def centroid(self) -> FloatArray:
+        """Area centroid (2,) of the union of the triangles."""
+        area = np.abs(self.ex[0] * self.ey[2] - self.ey[0] * self.ex[2])
+        total = 3.0 * max(float(area.sum()), 1e-300)
+        x, y = self.x, self.y
+        return np.array([area @ (x[0] + x[1] + x[2]), area @ (y[0] + y[1] + y[2])]) / total
