@@ -256,48 +256,53 @@ def _climb(
     segs: Segments,
     pattern: FloatArray,
 ) -> tuple[FloatArray, float]:
-    """Climb the clearance from centre ``c`` (clearance ``r``), first over the boundary
-    edges that can be the nearest ones while the centre stays within reach of ``c``;
-    when the centre leaves that reach or a far edge ends up nearer, the search is redone
-    over all of them."""
-    reach = 4.0 * step
-    near = segs.distances(c[None, :])[0] <= r + 2.0 * reach
-    if not near.all():
-        found = _search(c, r, step, tol, segs.subset(near), reach, pattern)
-        if found is not None and float(segs.clearance(found[0])) >= found[1] * (1.0 - 1e-12):
-            return found
-    found = _search(c, r, step, tol, segs, np.inf, pattern)
-    assert found is not None
-    return found
+    """Pattern search from centre ``c`` (clearance ``r``), four step sizes per
+    evaluation (step, step/2, step/4, step/8): move to the best trial that improves r
+    and carry on at its step size (twice it after a move at the full step: the optimum
+    may be far); when none improves, the step shrinks 16-fold.
 
-
-def _search(
-    c: FloatArray,
-    r: float,
-    step: float,
-    tol: float,
-    segs: Segments,
-    reach: float,
-    pattern: FloatArray,
-) -> tuple[FloatArray, float] | None:
-    """Pattern search, four step sizes per evaluation (step, step/2, step/4, step/8):
-    move to the best trial that improves r and carry on at its step size (twice it
-    after a move at the full step: the optimum may be far); when none improves, the
-    step shrinks 16-fold. None if the centre goes farther than ``reach``."""
-    start = c
+    Each evaluation runs over the boundary edges that can be the nearest ones to its
+    trials (:class:`_Nearby`): the same values, so the same path, as over all of them."""
+    nearby = _Nearby(segs)
     while step > tol:
         trial = (c + step * pattern).reshape(-1, 2)
-        rt = segs.clearance(trial)
+        rt = nearby.around(c, r, step).clearance(trial)
         k = int(np.argmax(rt))
         if rt[k] > r:
             c, r = trial[k], float(rt[k])
             scale = k // pattern.shape[1]
             step *= 2.0 if scale == 0 else _SCALES[scale]
-            if float(np.max(np.abs(c - start))) > reach:
-                return None
         else:
             step *= _SCALES[-1] / 2
     return c, r
+
+
+class _Nearby:
+    """The segments that can be the nearest ones to points within ``reach`` (L-infinity)
+    of an anchor of clearance r: those no farther than ``r + 2 reach`` from it (any
+    point there is at most r + reach from its nearest, a farther segment more than
+    that). The anchor moves to the search's centre when its trials would leave the
+    reach; it holds them all when most of them are near anyway."""
+
+    SHARE = 0.75  # a subset of more than this share of the segments: all of them
+    REACH = 4.0  # the reach, in steps of the search at the anchor
+
+    def __init__(self, segs: Segments) -> None:
+        self.segs, self.near = segs, segs
+        self.anchor = np.zeros(2)
+        self.reach = -1.0
+
+    def around(self, c: FloatArray, r: float, step: float) -> Segments:
+        """The segments that can be nearest to points within ``step`` of ``c``
+        (clearance ``r``)."""
+        if float(np.max(np.abs(c - self.anchor))) + step > self.reach:
+            reach = self.REACH * step
+            keep = self.segs.distances(c[None, :])[0] <= r + 2.0 * reach
+            if np.count_nonzero(keep) > self.SHARE * keep.size:
+                self.near, self.reach = self.segs, np.inf
+            else:
+                self.near, self.reach, self.anchor = self.segs.subset(keep), reach, c
+        return self.near
 
 
 def side_directions(d: FloatArray, bins: int = 180) -> FloatArray:
