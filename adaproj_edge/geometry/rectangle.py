@@ -109,21 +109,23 @@ class Segments:
     """
 
     def __init__(self, p0: FloatArray, p1: FloatArray) -> None:
-        self.p0, self.p1 = p0, p1
-        lo, hi = np.minimum(p0, p1), np.maximum(p0, p1)
-        self.mx = 0.5 * (lo[:, 0] + hi[:, 0])  # the x range: mid-point, half-width
-        self.hx = 0.5 * (hi[:, 0] - lo[:, 0])
-        self.my = 0.5 * (lo[:, 1] + hi[:, 1])
-        self.hy = 0.5 * (hi[:, 1] - lo[:, 1])
-        d = p1 - p0
-        s = np.abs(d[:, 0]) + np.abs(d[:, 1])
-        s = np.where(s > 0, s, np.inf)  # a point: no normal, the ranges alone
-        self.normal = np.stack([-d[:, 1] / s, d[:, 0] / s])  # (2, E), scaled by 1 / s
-        self.offset = self.normal[0] * p0[:, 0] + self.normal[1] * p0[:, 1]
+        x0, y0, x1, y1 = p0[:, 0], p0[:, 1], p1[:, 0], p1[:, 1]
+        dx, dy = x1 - x0, y1 - y0
+        self.mx, self.hx = 0.5 * (x0 + x1), 0.5 * np.abs(dx)  # x range: middle, half-width
+        self.my, self.hy = 0.5 * (y0 + y1), 0.5 * np.abs(dy)
+        s = np.abs(dx) + np.abs(dy)
+        s[s == 0] = np.inf  # a point: no normal, the ranges alone
+        self.normal = np.empty((2, len(s)))  # scaled by 1 / s
+        np.divide(-dy, s, out=self.normal[0])
+        np.divide(dx, s, out=self.normal[1])
+        self.offset = self.normal[0] * x0 + self.normal[1] * y0
 
     def subset(self, keep: NDArray[np.bool_]) -> Segments:
         """The segments where ``keep`` (E,) holds."""
-        return Segments(self.p0[keep], self.p1[keep])
+        out = Segments.__new__(Segments)
+        out.mx, out.hx, out.my, out.hy = self.mx[keep], self.hx[keep], self.my[keep], self.hy[keep]
+        out.normal, out.offset = self.normal[:, keep], self.offset[keep]
+        return out
 
     def distances(self, c: FloatArray) -> FloatArray:
         """L-infinity distance (N, E) from each of the points ``c`` (..., 2) (N of them)
@@ -242,7 +244,7 @@ def inscribed_rectangle(
         r = float(segs.clearance(c))
     c, r = _climb(c, r, step, tol, segs, pattern)
     if near > 0:
-        cc, rc = _centre(c, (1.0 - near) * r, region.centroid(), tol, segs, pattern)
+        cc, rc = _centre(c, r, (1.0 - near) * r, region.centroid(), tol, segs, pattern)
         if region.inside(cc):  # (the clearance alone does not tell in from out)
             c, r = cc, rc
     return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
@@ -334,23 +336,25 @@ def side_directions(d: FloatArray, bins: int = 180) -> FloatArray:
 
 def _centre(
     c: FloatArray,
+    r: float,
     least: float,
     goal: FloatArray,
     tol: float,
     segs: Segments,
     pattern: FloatArray,
 ) -> tuple[FloatArray, float]:
-    """From centre ``c``, the centre nearest ``goal`` (2,) whose clearance is still at
-    least ``least``: a pattern search (straight toward the goal, and the climb's steps),
-    moving while it gets nearer; returns it and its clearance."""
-    r = float(segs.clearance(c))
+    """From centre ``c`` (clearance ``r``), the centre nearest ``goal`` (2,) whose
+    clearance is still at least ``least``: a pattern search (straight toward the goal,
+    and the climb's steps), moving while it gets nearer; returns it and its clearance."""
     gap = float(np.linalg.norm(goal - c))
     step = gap
     while step > tol and gap > 0:
         toward = c + np.minimum(_SCALES * step / gap, 1.0)[:, None] * (goal - c)
         trial = np.concatenate([toward, (c + step * pattern).reshape(-1, 2)])
         rt = segs.clearance(trial)
-        gaps = np.where(rt >= least, np.linalg.norm(trial - goal, axis=1), np.inf)
+        away = trial - goal
+        away *= away
+        gaps = np.where(rt >= least, np.sqrt(away[:, 0] + away[:, 1]), np.inf)
         k = int(np.argmin(gaps))
         if gaps[k] < gap:
             c, r, gap = trial[k], float(rt[k]), float(gaps[k])

@@ -79,10 +79,10 @@ def _down_on_surface(
     from corner 0: coefficients a, b (T,), the triangles' surface areas, their weights
     (area times the projection's length) and where the basis is sound (T,) - the part
     of :func:`upright_angle` that depends on the mesh alone."""
-    corners = _corners(mesh)
+    corners, points = _corners(mesh), mesh.p
     e1, e2 = [], []
     for k in range(3):  # coordinate by coordinate: (3, T) each
-        p = np.take(mesh.p[:, k], corners)
+        p = np.take(points[:, k], corners)
         e1.append(p[1] - p[0])
         e2.append(p[2] - p[0])
     ax, ay, az = e1

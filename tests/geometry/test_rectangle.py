@@ -154,8 +154,12 @@ def test_climb_over_nearby_segments_takes_the_plain_path(seed: int, warm: bool) 
     v, tris = _jittered_region(seed)
     edges = boundary_edges(tris)
     segments = Segments(v[edges[:, 0]], v[edges[:, 1]])
-    rng = np.random.default_rng(seed)
-    c = v[tris[rng.integers(len(tris))]].mean(axis=0)
+    # from a triangle's centre well inside (from near the outline, a step may jump out
+    # of the region, where the clearance grows without bound)
+    centres = v[tris].mean(axis=1)
+    clearance = segments.clearance(centres)
+    deep = np.flatnonzero(clearance >= 0.5 * clearance.max())
+    c = centres[np.random.default_rng(seed).choice(deep)]
     extent = float(np.max(np.ptp(v, axis=0)))
     step = (0.002 if warm else 0.01) * extent
     pattern = (
