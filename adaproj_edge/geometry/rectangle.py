@@ -10,7 +10,10 @@ region's boundary, holes included, is the set of mesh edges that belong to one
 triangle only). The search starts from a coarse raster (the pixel with the largest
 chessboard distance to the outside, from ``cv2.distanceTransform``) and then climbs
 ``r(c)`` exactly with a shrinking pattern search, so the result is exact, not limited by
-the raster, and inside the region by construction.
+the raster, and inside the region by construction. Each of its steps evaluates ``r`` over
+the edges that can be the nearest to its trials (:class:`_Nearby`), the very values it
+would get over all of them; the distance to an edge is the largest of three gaps
+(:class:`Segments`). A warm start (the previous frame's centre) skips the raster.
 
 Where the largest rectangle can slide (content narrower than the region, a region
 wider at one end), where it ends up is a matter of taste, not of size: among the
