@@ -10,7 +10,10 @@ region's boundary, holes included, is the set of mesh edges that belong to one
 triangle only). The search starts from a coarse raster (the pixel with the largest
 chessboard distance to the outside, from ``cv2.distanceTransform``) and then climbs
 ``r(c)`` exactly with a shrinking pattern search, so the result is exact, not limited by
-the raster, and inside the region by construction.
+the raster, and inside the region by construction. Each of its steps evaluates ``r`` over
+the edges that can be the nearest to its trials (:class:`_Nearby`), the very values it
+would get over all of them; the distance to an edge is the largest of three gaps
+(:class:`Segments`). A warm start (the previous frame's centre) skips the raster.
 
 Where the largest rectangle can slide (content narrower than the region, a region
 wider at one end), where it ends up is a matter of taste, not of size: among the
@@ -97,46 +100,50 @@ def boundary_loops(edges: IntArray) -> list[IntArray] | None:
 
 
 class Segments:
-    """Segments p0-p1 (E, 2) held as the per-edge arrays the L-infinity distance needs
-    (the searches evaluate it for thousands of point-segment pairs per placement)."""
+    """Segments p0-p1 (E, 2) held as the per-edge constants the L-infinity distance needs
+    (the searches evaluate it for thousands of point-segment pairs per placement).
+
+    The square of half-side r centred at c meets a segment exactly when their
+    projections overlap on the square's two axes and on the segment's normal (they are
+    convex: a separating line, if any, is parallel to a side of one of them). So the
+    distance - the least such r - is the largest of three gaps: from c to the segment's
+    x range, to its y range, and along its normal ``n`` to its line, the last divided by
+    ``|n_x| + |n_y|`` (the square's half-width along ``n`` per unit of r).
+    """
 
     def __init__(self, p0: FloatArray, p1: FloatArray) -> None:
-        self.p0, self.p1 = p0, p1
-        self.x0 = np.ascontiguousarray(p0[:, 0])
-        self.y0 = np.ascontiguousarray(p0[:, 1])
-        self.dx = np.ascontiguousarray(p1[:, 0] - p0[:, 0])
-        self.dy = np.ascontiguousarray(p1[:, 1] - p0[:, 1])
-        # where |a_x + t d_x| = |a_y + t d_y| (two lines); a zero denominator gives
-        # t = 0 (num / inf), an end already among the candidates
-        self.den = [self._safe(self.dx - self.dy), self._safe(self.dx + self.dy)]
-
-    @staticmethod
-    def _safe(den: FloatArray) -> FloatArray:
-        out: FloatArray = np.where(np.abs(den) > 1e-300, den, np.inf)
-        return out
+        x0, y0, x1, y1 = p0[:, 0], p0[:, 1], p1[:, 0], p1[:, 1]
+        dx, dy = x1 - x0, y1 - y0
+        self.mx, self.hx = 0.5 * (x0 + x1), 0.5 * np.abs(dx)  # x range: middle, half-width
+        self.my, self.hy = 0.5 * (y0 + y1), 0.5 * np.abs(dy)
+        s = np.abs(dx) + np.abs(dy)
+        s[s == 0] = np.inf  # a point: no normal, the ranges alone
+        self.normal = np.empty((2, len(s)))  # scaled by 1 / s
+        np.divide(-dy, s, out=self.normal[0])
+        np.divide(dx, s, out=self.normal[1])
+        self.offset = self.normal[0] * x0 + self.normal[1] * y0
 
     def subset(self, keep: NDArray[np.bool_]) -> Segments:
         """The segments where ``keep`` (E,) holds."""
-        return Segments(self.p0[keep], self.p1[keep])
+        out = Segments.__new__(Segments)
+        out.mx, out.hx, out.my, out.hy = self.mx[keep], self.hx[keep], self.my[keep], self.hy[keep]
+        out.normal, out.offset = self.normal[:, keep], self.offset[keep]
+        return out
 
     def distances(self, c: FloatArray) -> FloatArray:
         """L-infinity distance (N, E) from each of the points ``c`` (..., 2) (N of them)
         to each segment."""
         c = c.reshape(-1, 2)
-        ax = self.x0[None, :] - c[:, 0:1]  # (N, E): segment start relative to c
-        ay = self.y0[None, :] - c[:, 1:2]
-        dx, dy = self.dx, self.dy
-        # f(t) = max(|a_x + t d_x|, |a_y + t d_y|) is convex and piecewise linear in t:
-        # its minimum over [0, 1] is at an end or where |a_x + t d_x| = |a_y + t d_y|.
-        best = np.maximum(np.abs(ax), np.abs(ay))
-        np.minimum(best, np.maximum(np.abs(ax + dx), np.abs(ay + dy)), out=best)
-        for num, den in ((ay - ax, self.den[0]), (-(ax + ay), self.den[1])):
-            t = num / den
-            np.clip(t, 0.0, 1.0, out=t)
-            fx = np.abs(ax + t * dx)
-            np.maximum(fx, np.abs(ay + t * dy), out=fx)
-            np.minimum(best, fx, out=best)
-        return best
+        out = np.abs(c[:, 0:1] - self.mx)
+        out -= self.hx
+        gap = np.abs(c[:, 1:2] - self.my)
+        gap -= self.hy
+        np.maximum(out, gap, out=out)
+        gap = c @ self.normal
+        gap -= self.offset
+        np.abs(gap, out=gap)
+        np.maximum(out, gap, out=out)
+        return out
 
     def clearance(self, c: FloatArray) -> FloatArray:
         """L-infinity distance from points ``c`` (..., 2) to the nearest segment: (...)."""
@@ -148,14 +155,14 @@ def _raster_start(
     v: FloatArray,
     tris: IntArray,
     resolution: int,
+    bounds: tuple[FloatArray, FloatArray],
     boundary: IntArray | None = None,
     loops: list[IntArray] | None = None,
 ) -> tuple[FloatArray, float]:
-    """Centre (2,) of the largest square in a raster of the region, and the cell size
-    (``loops``: :func:`boundary_loops` of ``boundary`` when known, [] when they do not
-    chain simply)."""
-    lo = v.min(axis=0)
-    hi = v.max(axis=0)
+    """Centre (2,) of the largest square in a raster of the region (``bounds``: its
+    lowest and highest x, y), and the cell size (``loops``: :func:`boundary_loops` of
+    ``boundary`` when known, [] when they do not chain simply)."""
+    lo, hi = bounds
     extent = float(np.max(hi - lo))
     if not np.isfinite(extent) or extent <= 0:
         raise WarpError("the warped mesh has no area")
@@ -169,7 +176,7 @@ def _raster_start(
     if loops:  # the region's outline (holes included: filled even-odd)
         cv2.fillPoly(mask, [q[loop] for loop in loops], 1, lineType=cv2.LINE_8, shift=_SHIFT)
     else:
-        cv2.fillPoly(mask, list(q[tris]), 1, lineType=cv2.LINE_8, shift=_SHIFT)
+        cv2.fillPoly(mask, list(np.take(q, tris, axis=0)), 1, lineType=cv2.LINE_8, shift=_SHIFT)
     dist = cv2.distanceTransform(mask, cv2.DIST_C, 3)
     _, best, _, loc = cv2.minMaxLoc(dist)
     if best < 1:
@@ -216,10 +223,15 @@ def inscribed_rectangle(
         raise WarpError("no surface triangles to place the content on")
     q = v * np.array([1.0, aspect])  # the wanted rectangle becomes a square
     edges = boundary_edges(tris) if boundary is None else boundary
-    p0, p1 = q[edges[:, 0]], q[edges[:, 1]]
+    # (np.take, and reductions along rows of q.T: several times quicker than q[index]
+    # and reductions down the columns of q at these sizes)
+    p0, p1 = np.take(q, edges[:, 0], axis=0), np.take(q, edges[:, 1], axis=0)
     segs = Segments(p0, p1)
-    extent = float(np.max(np.ptp(q, axis=0)))
+    qt = np.ascontiguousarray(q.T)
+    bounds = qt.min(axis=1), qt.max(axis=1)
+    extent = float(np.max(bounds[1] - bounds[0]))
     tol = TOLERANCE * extent
+    region = _Triangles(qt, tris)
     sides = side_directions(p1 - p0)
     directions = np.concatenate([_DIRECTIONS, sides, -sides])
     pattern = _SCALES[:, None, None] * directions[None]  # (4, 12, 2)
@@ -228,15 +240,15 @@ def inscribed_rectangle(
         c = np.asarray(start, dtype=np.float64) * np.array([1.0, aspect])
         step = 0.002 * extent  # a warm start: the rectangle moves little
         r = float(segs.clearance(c))
-        if not _inside(c, q, tris):
+        if not region.inside(c):
             r = -1.0
     if r <= 0:
-        c, step = _raster_start(q, tris, resolution, edges, loops)
+        c, step = _raster_start(q, tris, resolution, bounds, edges, loops)
         r = float(segs.clearance(c))
     c, r = _climb(c, r, step, tol, segs, pattern)
     if near > 0:
-        cc, rc = _centre(c, (1.0 - near) * r, _centroid(q, tris), tol, segs, pattern)
-        if _inside(cc, q, tris):  # (the clearance alone does not tell in from out)
+        cc, rc = _centre(c, r, (1.0 - near) * r, region.centroid(), tol, segs, pattern)
+        if region.inside(cc):  # (the clearance alone does not tell in from out)
             c, r = cc, rc
     return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
 
@@ -249,103 +261,103 @@ def _climb(
     segs: Segments,
     pattern: FloatArray,
 ) -> tuple[FloatArray, float]:
-    """Climb the clearance from centre ``c`` (clearance ``r``), first over the boundary
-    edges that can be the nearest ones while the centre stays within reach of ``c``;
-    when the centre leaves that reach or a far edge ends up nearer, the search is redone
-    over all of them."""
-    reach = 4.0 * step
-    near = segs.distances(c[None, :])[0] <= r + 2.0 * reach
-    if not near.all():
-        found = _search(c, r, step, tol, segs.subset(near), reach, pattern)
-        if found is not None and float(segs.clearance(found[0])) >= found[1] * (1.0 - 1e-12):
-            return found
-    found = _search(c, r, step, tol, segs, np.inf, pattern)
-    assert found is not None
-    return found
+    """Pattern search from centre ``c`` (clearance ``r``), four step sizes per
+    evaluation (step, step/2, step/4, step/8): move to the best trial that improves r
+    and carry on at its step size (twice it after a move at the full step: the optimum
+    may be far); when none improves, the step shrinks 16-fold.
 
-
-def _search(
-    c: FloatArray,
-    r: float,
-    step: float,
-    tol: float,
-    segs: Segments,
-    reach: float,
-    pattern: FloatArray,
-) -> tuple[FloatArray, float] | None:
-    """Pattern search, four step sizes per evaluation (step, step/2, step/4, step/8):
-    move to the best trial that improves r and carry on at its step size (twice it
-    after a move at the full step: the optimum may be far); when none improves, the
-    step shrinks 16-fold. None if the centre goes farther than ``reach``."""
-    start = c
+    Each evaluation runs over the boundary edges that can be the nearest ones to its
+    trials (:class:`_Nearby`): the same values, so the same path, as over all of them."""
+    nearby = _Nearby(segs)
     while step > tol:
         trial = (c + step * pattern).reshape(-1, 2)
-        rt = segs.clearance(trial)
+        rt = nearby.around(c, r, step).clearance(trial)
         k = int(np.argmax(rt))
         if rt[k] > r:
             c, r = trial[k], float(rt[k])
             scale = k // pattern.shape[1]
             step *= 2.0 if scale == 0 else _SCALES[scale]
-            if float(np.max(np.abs(c - start))) > reach:
-                return None
         else:
             step *= _SCALES[-1] / 2
     return c, r
+
+
+class _Nearby:
+    """The segments that can be the nearest ones to points within ``reach`` (L-infinity)
+    of an anchor of clearance r: those no farther than ``r + 2 reach`` from it (any
+    point there is at most r + reach from its nearest, a farther segment more than
+    that). The anchor moves to the search's centre when its trials would leave the
+    reach; it holds them all when most of them are near anyway."""
+
+    SHARE = 0.75  # a subset of more than this share of the segments: all of them
+    REACH = 4.0  # the reach, in steps of the search at the anchor
+
+    def __init__(self, segs: Segments) -> None:
+        self.segs, self.near = segs, segs
+        self.anchor = np.zeros(2)
+        self.reach = -1.0
+
+    def around(self, c: FloatArray, r: float, step: float) -> Segments:
+        """The segments that can be nearest to points within ``step`` of ``c``
+        (clearance ``r``)."""
+        if float(np.max(np.abs(c - self.anchor))) + step > self.reach:
+            reach = self.REACH * step
+            keep = self.segs.distances(c[None, :])[0] <= r + 2.0 * reach
+            if np.count_nonzero(keep) > self.SHARE * keep.size:
+                self.near, self.reach = self.segs, np.inf
+            else:
+                self.near, self.reach, self.anchor = self.segs.subset(keep), reach, c
+        return self.near
 
 
 def side_directions(d: FloatArray, bins: int = 180) -> FloatArray:
     """The two dominant directions (2, 2) of segments ``d`` (E, 2): the length-weighted
     peaks of their angle histogram (modulo 180 degrees, the second at least 20 degrees
     from the first), each the weighted mean direction of its peak's segments."""
-    length = np.linalg.norm(d, axis=1)
-    angle = np.mod(np.arctan2(d[:, 1], d[:, 0]), np.pi)
-    k = np.minimum((angle / np.pi * bins).astype(int), bins - 1)
+    dx, dy = d[:, 0], d[:, 1]
+    length = np.sqrt(dx * dx + dy * dy)
+    angle = np.mod(np.arctan2(dy, dx), np.pi)
+    k = np.minimum((angle / np.pi * bins).astype(np.intp), bins - 1)
     hist = np.bincount(k, weights=length, minlength=bins)
-    smooth = hist + np.roll(hist, 1) + np.roll(hist, -1)
+    ring = np.concatenate([hist[-1:], hist, hist[:1]])
+    smooth = hist + ring[:-2] + ring[2:]  # each bin with its two neighbours
     first = int(np.argmax(smooth))
-    gap = np.abs((np.arange(bins) - first + bins // 2) % bins - bins // 2)
-    second = int(np.argmax(np.where(gap >= bins // 9, smooth, -1.0)))
-    out = []
-    for b in (first, second):
-        near = np.abs((k - b + bins // 2) % bins - bins // 2) <= 1
-        # double the angles so that directions 180 degrees apart add up
-        z = np.sum(length[near] * np.exp(2j * angle[near]))
+    half = bins // 2
+    apart = bins // 9  # the second peak's least distance from the first, in bins
+    smooth[np.arange(first - apart + 1, first + apart) % bins] = -1.0
+    second = int(np.argmax(smooth))
+    # double the angles so that directions 180 degrees apart add up
+    z2 = length * np.exp(2j * angle)
+    out = np.empty((2, 2))
+    for i, b in enumerate((first, second)):
+        near = np.abs((k - b + half) % bins - half) <= 1
+        z = complex(np.sum(z2[near]))
         a = 0.5 * np.angle(z) if abs(z) > 0 else (b + 0.5) * np.pi / bins
-        out.append([np.cos(a), np.sin(a)])
-    return np.array(out)
-
-
-def _centroid(v: FloatArray, tris: IntArray) -> FloatArray:
-    """Area centroid (2,) of the union of the triangles ``tris`` over ``v``."""
-    a, b, d = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
-    area = np.abs(
-        (b[:, 0] - a[:, 0]) * (d[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (d[:, 0] - a[:, 0])
-    )
-    out: FloatArray = (area[:, None] * (a + b + d)).sum(axis=0) / (
-        3.0 * max(float(area.sum()), 1e-300)
-    )
+        out[i] = np.cos(a), np.sin(a)
     return out
 
 
 def _centre(
     c: FloatArray,
+    r: float,
     least: float,
     goal: FloatArray,
     tol: float,
     segs: Segments,
     pattern: FloatArray,
 ) -> tuple[FloatArray, float]:
-    """From centre ``c``, the centre nearest ``goal`` (2,) whose clearance is still at
-    least ``least``: a pattern search (straight toward the goal, and the climb's steps),
-    moving while it gets nearer; returns it and its clearance."""
-    r = float(segs.clearance(c))
+    """From centre ``c`` (clearance ``r``), the centre nearest ``goal`` (2,) whose
+    clearance is still at least ``least``: a pattern search (straight toward the goal,
+    and the climb's steps), moving while it gets nearer; returns it and its clearance."""
     gap = float(np.linalg.norm(goal - c))
     step = gap
     while step > tol and gap > 0:
         toward = c + np.minimum(_SCALES * step / gap, 1.0)[:, None] * (goal - c)
         trial = np.concatenate([toward, (c + step * pattern).reshape(-1, 2)])
         rt = segs.clearance(trial)
-        gaps = np.where(rt >= least, np.linalg.norm(trial - goal, axis=1), np.inf)
+        away = trial - goal
+        away *= away
+        gaps = np.where(rt >= least, np.sqrt(away[:, 0] + away[:, 1]), np.inf)
         k = int(np.argmin(gaps))
         if gaps[k] < gap:
             c, r, gap = trial[k], float(rt[k]), float(gaps[k])
@@ -354,15 +366,27 @@ def _centre(
     return c, r
 
 
-def _inside(c: FloatArray, v: FloatArray, tris: IntArray) -> bool:
-    """Whether point ``c`` lies in one of the triangles."""
-    a, b, d = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
+class _Triangles:
+    """The triangles ``tris`` (T, 3) over vertices ``vt`` (2, n) (x row, y row), their
+    corners and sides gathered once for the tests of a placement (held corner by corner,
+    (3, T): reductions over the three run along rows, quick)."""
 
-    def side(p: FloatArray, q: FloatArray) -> FloatArray:
-        out: FloatArray = (q[:, 0] - p[:, 0]) * (c[1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (
-            c[0] - p[:, 0]
-        )
-        return out
+    def __init__(self, vt: FloatArray, tris: IntArray) -> None:
+        corners = np.ascontiguousarray(tris.T)
+        self.x, self.y = np.take(vt[0], corners), np.take(vt[1], corners)  # (3, T)
+        turn = [1, 2, 0]
+        self.ex, self.ey = self.x[turn] - self.x, self.y[turn] - self.y  # sides
 
-    s1, s2, s3 = side(a, b), side(b, d), side(d, a)
-    return bool(np.any(((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))))
+    def inside(self, c: FloatArray) -> bool:
+        """Whether point ``c`` (2,) lies in one of the triangles."""
+        s = self.ex * (c[1] - self.y)
+        s -= self.ey * (c[0] - self.x)
+        left, right = s >= 0, s <= 0
+        return bool(np.any((left[0] & left[1] & left[2]) | (right[0] & right[1] & right[2])))
+
+    def centroid(self) -> FloatArray:
+        """Area centroid (2,) of the union of the triangles."""
+        area = np.abs(self.ex[0] * self.ey[2] - self.ey[0] * self.ex[2])
+        total = 3.0 * max(float(area.sum()), 1e-300)
+        x, y = self.x, self.y
+        return np.array([area @ (x[0] + x[1] + x[2]), area @ (y[0] + y[1] + y[2])]) / total

@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from adaproj_edge.errors import WarpError
+from adaproj_edge.geometry import rectangle
 from adaproj_edge.geometry.rectangle import (
     NEAR,
     Segments,
@@ -113,3 +114,76 @@ def test_a_rectangle_that_can_slide_is_centred() -> None:
     assert r.width == pytest.approx(10.0, rel=1e-3)
     assert r.x0 + r.width / 2 == pytest.approx(8.0, abs=0.05)
     assert r.y0 == pytest.approx(0.0, abs=0.01)
+
+
+def _plain_climb(
+    c: np.ndarray, r: float, step: float, tol: float, segments: Segments, pattern: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """The climb's pattern search as documented, every trial over every segment."""
+    while step > tol:
+        trial = (c + step * pattern).reshape(-1, 2)
+        rt = segments.clearance(trial)
+        k = int(np.argmax(rt))
+        if rt[k] > r:
+            c, r = trial[k], float(rt[k])
+            scale = k // pattern.shape[1]
+            step *= 2.0 if scale == 0 else 0.5**scale
+        else:
+            step /= 16.0
+    return c, r
+
+
+def _jittered_region(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """A jittered, sheared 12 x 9 grid with a few cells missing (holes, notches)."""
+    rng = np.random.default_rng(seed)
+    v, tris = grid_mesh(12, 9, 1.0 + rng.random(), 1.0)
+    v = v @ np.array([[1.0, 0.0], [rng.normal(scale=0.3), 1.0]]) + rng.normal(
+        scale=0.01, size=v.shape
+    )
+    cells = rng.choice(len(tris) // 2, size=rng.integers(0, 6), replace=False)
+    keep = np.ones(len(tris), dtype=bool)
+    keep[2 * cells] = keep[2 * cells + 1] = False
+    return v, tris[keep]
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31), warm=st.booleans())
+def test_climb_over_nearby_segments_takes_the_plain_path(seed: int, warm: bool) -> None:
+    # the climb evaluates its trials over the segments that can be nearest: the very
+    # values, so the very path, of the search over all of them, from any start
+    v, tris = _jittered_region(seed)
+    edges = boundary_edges(tris)
+    segments = Segments(v[edges[:, 0]], v[edges[:, 1]])
+    # from a triangle's centre well inside (from near the outline, a step may jump out
+    # of the region, where the clearance grows without bound)
+    centres = v[tris].mean(axis=1)
+    clearance = segments.clearance(centres)
+    deep = np.flatnonzero(clearance >= 0.5 * clearance.max())
+    c = centres[np.random.default_rng(seed).choice(deep)]
+    extent = float(np.max(np.ptp(v, axis=0)))
+    step = (0.002 if warm else 0.01) * extent
+    pattern = (
+        rectangle._SCALES[:, None, None]
+        * np.concatenate([rectangle._DIRECTIONS, side_directions(v[edges[:, 1]] - v[edges[:, 0]])])[
+            None
+        ]
+    )
+    r = float(segments.clearance(c))
+    tol = rectangle.TOLERANCE * extent
+    got = rectangle._climb(c, r, step, tol, segments, pattern)
+    want = _plain_climb(c, r, step, tol, segments, pattern)
+    assert got[1] == want[1] and np.array_equal(got[0], want[0])
+    assert got[1] >= r
+
+
+def test_region_inside_and_centroid() -> None:
+    # a 10 x 10 square less the unit cell at x in [2, 3], y in [5, 6]
+    v, tris = grid_mesh(10, 10, 10.0, 10.0)
+    keep = np.ones(len(tris), dtype=bool)
+    keep[2 * (5 * 10 + 2) : 2 * (5 * 10 + 2) + 2] = False
+    region = rectangle._Triangles(np.ascontiguousarray(v.T), tris[keep])
+    want = (np.array([5.0, 5.0]) * 100.0 - np.array([2.5, 5.5])) / 99.0  # area moments
+    np.testing.assert_allclose(region.centroid(), want, rtol=1e-12)
+    assert region.inside(np.array([2.0 + 1e-9, 4.0])) and region.inside(np.array([9.9, 0.1]))
+    assert not region.inside(np.array([2.5, 5.5])) and not region.inside(np.array([10.1, 5.0]))
+    assert region.inside(np.array([3.0, 5.5]))  # on the hole's edge: in a triangle

@@ -1,0 +1,57 @@
+"""The upright angle of a placement, against a triangle-by-triangle computation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from adaproj_edge.geometry.analytic import simulate_surface
+from adaproj_edge.warp.mesh import MeshGeometry
+from adaproj_edge.warp.placement import upright_angle
+from adaproj_edge.warp.warpmap import Grid
+
+
+@pytest.fixture(scope="module")
+def bowl() -> MeshGeometry:
+    return MeshGeometry.build(simulate_surface("bowl", step=8), Grid(12, 9))
+
+
+def _by_triangle(mesh: MeshGeometry, v: np.ndarray, up: np.ndarray) -> float:
+    """Down on each triangle's plane carried to content space by the triangle's own
+    affine map (least squares over its corners), weighted by area times its length."""
+    down = -up / np.linalg.norm(up)
+    total = np.zeros(2)
+    for tri in mesh.tris:
+        p, q = mesh.p[tri], v[tri]
+        e = np.stack([p[1] - p[0], p[2] - p[0]], axis=1)  # (3, 2)
+        n = np.cross(e[:, 0], e[:, 1])
+        area = 0.5 * np.linalg.norm(n)
+        n /= np.linalg.norm(n)
+        g = down - (n @ down) * n
+        coef = np.linalg.lstsq(e, g, rcond=None)[0]
+        d = np.stack([q[1] - q[0], q[2] - q[0]], axis=1) @ coef
+        total += area * np.linalg.norm(g) * d / np.linalg.norm(d)
+    return float(np.pi / 2 - np.arctan2(total[1], total[0]))
+
+
+@settings(max_examples=15, deadline=None)
+@given(turn=st.floats(-3.0, 3.0), shear=st.floats(-0.3, 0.3), tilt=st.floats(-0.6, 0.6))
+def test_upright_angle_is_the_weighted_mean_down(
+    bowl: MeshGeometry, turn: float, shear: float, tilt: float
+) -> None:
+    rot = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+    v = bowl.p[:, :2] @ np.array([[1.0, shear], [0.0, 1.0]]) @ rot.T  # some flat map
+    up = np.array([np.sin(tilt), -np.cos(tilt), 0.1])
+    got, want = upright_angle(bowl, v, up), _by_triangle(bowl, v, up)
+    assert np.cos(got - want) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_upright_angle_undoes_a_turn_of_a_flat_wall() -> None:
+    mesh = MeshGeometry.build(simulate_surface("plane", step=8), Grid(8, 6))
+    turn = 0.4
+    rot = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+    # the wall faces the projector: its x, y are those of the projector's frame
+    angle = upright_angle(mesh, mesh.p[:, :2] @ rot.T, np.array([0.0, -1.0, 0.0]))
+    assert angle == pytest.approx(-turn, abs=1e-9)
