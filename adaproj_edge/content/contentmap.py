@@ -84,8 +84,9 @@ class ContentMap:
         """
         w, h = self.content_size
         mh, mw = self.values.shape
-        pts = np.nan_to_num(np.asarray(xy, dtype=np.float64).reshape(-1, 2), nan=-1.0)
+        pts = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         x, y = pts[:, 0], pts[:, 1]
+        # (an unknown position, NaN, is outside: every comparison with it is false)
         inside = (x >= -0.5) & (x <= w - 0.5) & (y >= -0.5) & (y <= h - 0.5)
         # bilinear on the map, its edge values held beyond it (map_coordinates' order 1,
         # "nearest"; written out: a few hundred points a call, many calls a warp)
@@ -115,8 +116,8 @@ class ContentMap:
 def _cell(c: FloatArray, size: int) -> tuple[NDArray[np.intp], FloatArray]:
     """For map coordinates ``c`` (n,) along an axis of ``size`` samples: the first of the
     two samples to blend and the second's weight, coordinates held to ``[0, size - 1]``
-    (a one-sample axis blends its sample with itself)."""
-    c = np.clip(c, 0.0, size - 1.0)
+    (a one-sample axis blends its sample with itself; NaN is held to 0)."""
+    c = np.fmin(np.fmax(c, 0.0), size - 1.0)  # (fmax: NaN becomes 0, a valid index)
     i = np.minimum(c.astype(np.intp), max(size - 2, 0))
     t: FloatArray = c - i
     return i, t

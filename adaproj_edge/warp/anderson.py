@@ -19,7 +19,7 @@ from adaproj_edge.arrays import FloatArray
 
 @dataclass
 class Anderson:
-    """Keeps the last ``depth`` iterates and their images.
+    """Keeps the differences of the last ``depth + 1`` residuals and images.
 
     ``next(x, gx)`` takes the current iterate ``x`` (N,) and its image ``gx = g(x)``
     and returns the next iterate; :meth:`reset` forgets the history (call it when
@@ -27,34 +27,42 @@ class Anderson:
     """
 
     depth: int = 3
-    _f: list[FloatArray] = field(default_factory=list)
-    _g: list[FloatArray] = field(default_factory=list)
+    _last: tuple[FloatArray, FloatArray] | None = None  # the last residual and image
+    _df: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))  # (depth, N)
+    _dg: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    _m: int = 0  # rows of _df, _dg in use
 
     def reset(self) -> None:
         """Forget the history (``g`` has changed)."""
-        self._f.clear()
-        self._g.clear()
+        self._last = None
+        self._m = 0
 
     def next(self, x: FloatArray, gx: FloatArray) -> FloatArray:
         """The accelerated next iterate (N,) from ``x`` and ``g(x)`` (both (N,))."""
         f = gx - x
-        self._f.append(f)
-        self._g.append(gx)
-        if len(self._f) > self.depth + 1:
-            del self._f[0], self._g[0]
-        m = len(self._f) - 1
-        if m < 1:
+        last, self._last = self._last, (f, gx)
+        if last is None:
             return gx
-        df = np.diff(np.stack(self._f), axis=0)  # (m, N)
+        if self._df.shape != (self.depth, f.size):
+            self._df = np.empty((self.depth, f.size))
+            self._dg = np.empty((self.depth, f.size))
+        if self._m == self.depth:  # the oldest difference goes
+            self._df[:-1] = self._df[1:]
+            self._dg[:-1] = self._dg[1:]
+            self._m -= 1
+        np.subtract(f, last[0], out=self._df[self._m])
+        np.subtract(gx, last[1], out=self._dg[self._m])
+        self._m += 1
+        df, dg = self._df[: self._m], self._dg[: self._m]
         # the least-squares mix by its (small) normal equations, lightly regularised
         gram = df @ df.T
-        gram[np.diag_indices_from(gram)] *= 1.0 + 1e-10
+        gram.flat[:: self._m + 1] *= 1.0 + 1e-10
         try:
             gamma = np.linalg.solve(gram, df @ f)
         except np.linalg.LinAlgError:
             self.reset()
             return gx
-        out: FloatArray = gx - gamma @ np.diff(np.stack(self._g), axis=0)
+        out: FloatArray = gx - gamma @ dg
         if not np.all(np.isfinite(out)):
             self.reset()
             return gx

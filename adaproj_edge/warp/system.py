@@ -221,8 +221,8 @@ class ComplexLeastSquares:
         fixed_entry = np.flatnonzero((fc < 0) & (self.cols < n))
         self.fixed_rows = np.unique(fixed_entry // k)
         # the coefficient pairs of each row (a <= b) that land in the band (both free),
-        # in (row, pair) order: their row, their place in the band's storage and their
-        # two coefficients as flat indices of the (m, k) values
+        # in (row, pair) order: where they are among the (m, pairs) products, their row
+        # and their place in the band's storage
         pair_a, pair_b = _pairs(k)
         i = np.take(fc, pair_a, axis=1).reshape(-1)
         j = np.take(fc, pair_b, axis=1).reshape(-1)
@@ -233,14 +233,18 @@ class ComplexLeastSquares:
         self.band = band = int(gap.max()) if gap.size else 0
         self.dump = (band + 1) * self.nf
         self.used_flat = (band - gap) * self.nf + hi
-        self.used_rows = rows = used // pair_a.size
-        pair = used - rows * pair_a.size
-        self.used_a = rows * k + pair_a[pair]
-        self.used_b = rows * k + pair_b[pair]
+        self.used = used  # flat indices of the (m, pairs) products
+        self.used_rows = used // pair_a.size
         # a pair below the diagonal adds the conjugate of its product
         self.used_sign = 1.0 - 2.0 * (i > j)
         # two coefficients of one unknown add twice the real part of their product
-        self.used_twice = np.flatnonzero((i == j) & (pair_a != pair_b)[pair])
+        # (only in rows that name an unknown twice: usually none)
+        self.used_twice = np.zeros(0, dtype=np.intp)
+        off = [(a, b) for a, b in zip(pair_a.tolist(), pair_b.tolist(), strict=True) if a != b]
+        if any(np.any((fc[:, a] == fc[:, b]) & (fc[:, a] >= 0)) for a, b in off):
+            pair = used - self.used_rows * pair_a.size
+            self.used_twice = np.flatnonzero((i == j) & (pair_a != pair_b)[pair])
+        self.pair_a, self.pair_b = pair_a, pair_b
         # the coupling of the free unknowns to the fixed ones: per coefficient pair of a
         # fixed-seeing row, where its product lands in the (nf, n_fixed) matrix
         self.fixed_list = np.flatnonzero(fixed)
@@ -263,8 +267,9 @@ class ComplexLeastSquares:
         (m,); nothing to do when both are the ones last factored."""
         if self._vals is not vals:
             # the products of the coefficient pairs that land in the band
-            prod = np.conj(np.take(vals, self.used_a))
-            prod *= np.take(vals, self.used_b)
+            prod = np.conj(np.take(vals, self.pair_a, axis=1))
+            prod *= np.take(vals, self.pair_b, axis=1)
+            prod = np.take(prod, self.used)
             re = np.ascontiguousarray(prod.real)
             im = prod.imag * self.used_sign  # conjugated where the pair is swapped
             if self.used_twice.size:
