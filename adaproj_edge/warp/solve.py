@@ -84,23 +84,84 @@ def _pin_positions(mesh: MeshGeometry, a: int, b: int) -> tuple[FloatArray, Floa
 def solve_conformal(mesh: MeshGeometry) -> FloatArray:
     """E_a only, uniform weights, two vertices pinned: the iLamps-style conformal warp.
 
-    Solved over complex unknowns (:class:`~adaproj_edge.warp.system.ComplexLeastSquares`).
-    Returns (n, 2) positions in surface units.
+    Solved over complex unknowns with the content-aware step's system
+    (:func:`complex_system`: vertex a pinned; one set-up serves both): E_a at weight 1,
+    the edge and position rows at weight 0 but b's, which pulls b toward its pin. E_a is
+    a quadratic form that vanishes on translations, so that minimiser is the two-pin
+    solution scaled about a (by a real factor just below 1); scaling it back to b's pin
+    gives that solution exactly. Returns (n, 2) positions in surface units.
     """
     n = mesh.n
-    cols, vals = conformal_rows(mesh)
+    rows = complex_system(mesh)
     a, b = gauge_vertices(mesh)
-    fixed = np.zeros(n, dtype=bool)
-    fixed[[a, b]] = True
-    z_fixed = np.zeros(n, dtype=np.complex128)
     pa, pb = _pin_positions(mesh, a, b)
-    z_fixed[a] = pa[0] + 1j * pa[1]
-    z_fixed[b] = pb[0] + 1j * pb[1]
-    system = mesh.topology.remember("conformal", lambda: ComplexLeastSquares(cols, n, fixed))
-    system.factor(vals, np.ones(cols.shape[0]))
-    m = cols.shape[0]
-    z = system.solve(np.zeros(m, dtype=np.complex128), z_fixed, zero_rows=m)
+    za, zb = complex(pa[0], pa[1]), complex(pb[0], pb[1])
+    n_conf, n_edge, _ = rows.sizes
+    at_b = n_conf + n_edge + b  # b's position row
+    weights = np.zeros(sum(rows.sizes))
+    weights[:n_conf] = 1.0
+    weights[at_b] = 1.0
+    const = np.zeros(sum(rows.sizes), dtype=np.complex128)
+    const[at_b] = zb
+    z_fixed = np.zeros(n, dtype=np.complex128)
+    z_fixed[a] = za
+    rows.system.factor(rows.vals, weights)
+    z = rows.system.solve(const, z_fixed, zero_rows=at_b)
+    if not abs(z[b] - za) > 0:
+        raise WarpError("the conformal solve collapsed (the mesh is degenerate?)")
+    z = za + (z - za) * ((zb - za) / (z[b] - za))
+    z[a], z[b] = za, zb
     return _as_xy(z)
+
+
+@dataclass(frozen=True)
+class ComplexRows:
+    """The E_a, edge and position rows over complex unknowns (one per vertex) and their
+    least-squares system with vertex a (:func:`gauge_vertices`) pinned.
+
+    sizes : rows of each block (E_a: (triangle, role); edges; vertices)
+    vals : (m, 3) their coefficients (shared: read, never write)
+    system : the system (made once per topology; it keeps its last factorisation)
+    """
+
+    sizes: tuple[int, int, int]
+    vals: NDArray[np.complex128]
+    system: ComplexLeastSquares
+
+
+def complex_system(mesh: MeshGeometry) -> ComplexRows:
+    """:class:`ComplexRows` of ``mesh``, made once per mesh: the conformal solve and the
+    content-aware step share them (and the system's set-up)."""
+
+    def make() -> ComplexRows:
+        n = mesh.n
+        blocks = [
+            conformal_rows(mesh),
+            terms.complex_edge_rows(mesh.edges),
+            terms.complex_position_rows(n),
+        ]
+        sizes = (blocks[0][0].shape[0], blocks[1][0].shape[0], blocks[2][0].shape[0])
+        vals = np.zeros((sum(sizes), 3), dtype=np.complex128)
+        start = 0
+        for _, v in blocks:
+            vals[start : start + v.shape[0], : v.shape[1]] = v
+            start += v.shape[0]
+        a, _ = gauge_vertices(mesh)
+
+        def system() -> ComplexLeastSquares:
+            cols = np.full((sum(sizes), 3), -1, dtype=np.intp)
+            start = 0
+            for c, _ in blocks:
+                cols[start : start + c.shape[0], : c.shape[1]] = c
+                start += c.shape[0]
+            fixed = np.zeros(n, dtype=bool)
+            fixed[a] = True
+            return ComplexLeastSquares(cols, n, fixed)
+
+        vals.flags.writeable = False
+        return ComplexRows(sizes, vals, mesh.topology.remember("content-aware", system))
+
+    return mesh.remember("complex rows", make)
 
 
 def _as_xy(z: NDArray[np.complex128]) -> FloatArray:
@@ -197,32 +258,11 @@ class ContentAwareSolver:
 
     def __post_init__(self) -> None:
         mesh = self.mesh
-        n = mesh.n
-        blocks = [
-            conformal_rows(mesh),
-            terms.complex_edge_rows(mesh.edges),
-            terms.complex_position_rows(n),
-        ]
-        self.sizes = [b[0].shape[0] for b in blocks]
-        self.vals = np.zeros((sum(self.sizes), 3), dtype=np.complex128)
-        start = 0
-        for _, v in blocks:
-            self.vals[start : start + v.shape[0], : v.shape[1]] = v
-            start += v.shape[0]
-        a, _ = gauge_vertices(mesh)
-        self.pinned = a
-
-        def system() -> ComplexLeastSquares:
-            cols = np.full((sum(self.sizes), 3), -1, dtype=np.intp)
-            start = 0
-            for c, _ in blocks:
-                cols[start : start + c.shape[0], : c.shape[1]] = c
-                start += c.shape[0]
-            fixed = np.zeros(n, dtype=bool)
-            fixed[a] = True
-            return ComplexLeastSquares(cols, n, fixed)
-
-        self.system = mesh.topology.remember("content-aware", system)
+        rows = complex_system(mesh)
+        self.sizes = list(rows.sizes)
+        self.vals = rows.vals
+        self.system = rows.system
+        self.pinned, _ = gauge_vertices(mesh)
         self.l2 = float(np.mean(mesh.lengths**2))
         self.apex = mesh.tris.reshape(-1)  # rows are (triangle, role): role k's apex is k
         self._const = np.zeros(sum(self.sizes), dtype=np.complex128)
