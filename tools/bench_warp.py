@@ -9,7 +9,10 @@ For each grid and doubly curved surface, ``content`` mode with an off-centre sub
   term and solved with ``spsolve`` every iteration, until the mean vertex motion is
   below 0.05 px or after 10 iterations); ``compute_warp(..., alternation="paper",
   backend=REFERENCE)``.
-* ``ours cold`` - :func:`~adaproj_edge.warp.planner.compute_warp` from scratch.
+* ``ours cold`` - :func:`~adaproj_edge.warp.planner.compute_warp` from scratch (no
+  :class:`~adaproj_edge.warp.mesh.WarpCache`: nothing of the scene is kept; what depends
+  on the grid and the projector alone - the grid's rays and sampling stencil, its
+  triangles - is made at the process's first warp and kept, as on the device).
 * ``ours cached`` - the same with a :class:`~adaproj_edge.warp.mesh.WarpCache` that has
   seen the scene (mesh topology and solver structures kept, as the device does).
 
