@@ -260,6 +260,7 @@ class ComplexLeastSquares:
         self._chol: NDArray[np.complex128] | None = None
         self._prod: tuple[FloatArray, FloatArray] = (np.zeros(0), np.zeros(0))
         self._adjoint: NDArray[np.complex128] = np.zeros(0, dtype=np.complex128)
+        self._adjoint_first = -1
         self._coupling: NDArray[np.complex128] = np.zeros((0, 0), dtype=np.complex128)
 
     def factor(self, vals: NDArray[np.complex128], weights: FloatArray) -> None:
@@ -291,8 +292,7 @@ class ComplexLeastSquares:
         except np.linalg.LinAlgError:
             raise WarpError("the warp system is singular (the mesh is disconnected?)") from None
         self._weights = np.array(weights, copy=True)
-        self._adjoint = np.conj(np.take(vals, self.entry_at))
-        self._adjoint *= self._weights[self.entry_rows]
+        self._adjoint_first = -1  # made at the first solve, for the rows it needs
         # (A_free^H W A_fixed): what the fixed unknowns' values take from the right side
         r = self._c_row
         terms = np.conj(vals[r, self._c_free]) * self._weights[r] * vals[r, self._c_fixed]
@@ -316,8 +316,13 @@ class ComplexLeastSquares:
             raise WarpError("the warp system has not been factored")
         # the entries are in row order: those of the first zero_rows rows come first
         first = int(np.searchsorted(self.entry_rows, zero_rows)) if zero_rows else 0
+        if not 0 <= self._adjoint_first <= first:
+            # A^H W for the entries from ``first`` on (kept while later solves need no more)
+            self._adjoint = np.conj(np.take(self._vals, self.entry_at[first:]))
+            self._adjoint *= self._weights[self.entry_rows[first:]]
+            self._adjoint_first = first
         rows = self.entry_rows[first:]
-        contrib = self._adjoint[first:] * const[rows]
+        contrib = self._adjoint[first - self._adjoint_first :] * const[rows]
         idx = self.entry_free[first:]
         rhs = np.bincount(idx, contrib.real, self.nf) + 1j * np.bincount(idx, contrib.imag, self.nf)
         if self.fixed_list.size:
