@@ -166,10 +166,7 @@ def content_aware(
     ends = np.take(v_conformal, e[salient].T, axis=0)  # (2, E', 2)
     chord = np.linalg.norm(ends[0] - ends[1], axis=1)
     scale = float(np.sum(mesh.lengths[salient]) / np.sum(chord))
-    # the same placement of the scaled positions (its rectangle's centre, in their
-    # units, scales with them)
-    centre = None if placement.centre is None else placement.centre * scale
-    start = Placement(placement.angle, placement.scale / scale, placement.offset, centre)
+    start = placement.for_scaled(scale)
     v, aware_placement, iterations, fraction = refine(
         mesh, v_conformal * scale, start, content_map, settings, backend, on_step
     )

@@ -29,6 +29,12 @@ class Placement:
     offset: FloatArray
     centre: FloatArray | None = None  # the rectangle's centre before scaling (warm starts)
 
+    def for_scaled(self, k: float) -> Placement:
+        """The same placement of positions scaled by ``k`` (``v * k``): the content lands
+        where it did, and the rectangle's centre, in the positions' units, scales too."""
+        centre = None if self.centre is None else self.centre * k
+        return Placement(self.angle, self.scale / k, self.offset, centre)
+
     def apply(self, v: FloatArray) -> FloatArray:
         """Content positions (n, 2) of the solved positions ``v`` (n, 2)."""
         c, s = np.cos(self.angle), np.sin(self.angle)

@@ -1,4 +1,5 @@
-"""The upright angle of a placement, against a triangle-by-triangle computation."""
+"""The upright angle of a placement, against a triangle-by-triangle computation; a
+placement carried over to scaled positions."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ from hypothesis import strategies as st
 
 from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.warp.mesh import MeshGeometry
-from adaproj_edge.warp.placement import upright_angle
+from adaproj_edge.warp.placement import place, upright_angle
+from adaproj_edge.warp.solve import solve_conformal
 from adaproj_edge.warp.warpmap import Grid
 
 
@@ -55,3 +57,20 @@ def test_upright_angle_undoes_a_turn_of_a_flat_wall() -> None:
     # the wall faces the projector: its x, y are those of the projector's frame
     angle = upright_angle(mesh, mesh.p[:, :2] @ rot.T, np.array([0.0, -1.0, 0.0]))
     assert angle == pytest.approx(-turn, abs=1e-9)
+
+
+@pytest.mark.parametrize("k", [0.5, 1.7, 3.0])
+def test_a_placement_for_scaled_positions_is_the_placement_they_get(
+    bowl: MeshGeometry, k: float
+) -> None:
+    """``for_scaled(k)`` of the placement of ``v`` is the placement of ``k v``: the same
+    content positions, and the rectangle's centre where placing ``k v`` puts it (the
+    warm start of the content-aware alternation's first placement)."""
+    v = solve_conformal(bowl)
+    p = place(bowl, v, (640, 400))
+    carried = p.for_scaled(k)
+    fresh = place(bowl, k * v, (640, 400))
+    np.testing.assert_allclose(carried.apply(k * v), p.apply(v), atol=1e-9)
+    np.testing.assert_allclose(carried.apply(k * v), fresh.apply(k * v), atol=1e-6)
+    assert carried.centre is not None and fresh.centre is not None
+    np.testing.assert_allclose(carried.centre, fresh.centre, rtol=1e-9)
