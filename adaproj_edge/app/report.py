@@ -20,8 +20,9 @@ SAMPLE_FRAMES = 12
 
 
 class FrameSampler:
-    """Frames the runtime showed: an evenly spaced sample (PNG in memory, bounded),
-    and every frame written to ``out/frames`` on request."""
+    """Frames the runtime showed: a checksum of each, and given an output directory
+    ``out``, an evenly spaced sample (PNG in memory, bounded) and every frame written to
+    ``out/frames`` on request."""
 
     def __init__(self, out: Path | None, all_frames: bool) -> None:
         self.out = out
@@ -35,9 +36,10 @@ class FrameSampler:
         self.handheld_plot: Image | None = None
 
     def __call__(self, t_ns: int, frame: Image, info: dict[str, Any]) -> None:
-        """Take the frame shown at ``t_ns``: a checksum of every frame (mean BGR), PNGs of an
-        evenly spaced sample (its spacing doubles whenever it grows past twice
-        ``SAMPLE_FRAMES``) and, when asked, every frame written to ``out/frames``."""
+        """Take the frame shown at ``t_ns``: a checksum of every frame (mean BGR) and, with
+        an output directory, PNGs of an evenly spaced sample (its spacing doubles
+        whenever it grows past twice ``SAMPLE_FRAMES``) and, when asked, every frame
+        written to ``out/frames``."""
         self.count += 1
         faults = info["faults"]
         caption = f"{(t_ns - self.t0) / 1e9:.2f}s {info['kind']}"
@@ -46,7 +48,9 @@ class FrameSampler:
         self.checksums.append(
             {"t_ns": t_ns, "kind": info["kind"], "mean_bgr": mean, "faults": faults}
         )
-        if self.out is not None and self.all:
+        if self.out is None:  # no outputs: a sample would never be written (and costs
+            return  # ~11 MB of PNGs and thumbnails held, a PNG encoding now and then)
+        if self.all:
             cv2.imwrite(str(self.out / "frames" / f"{self.count:05d}.png"), frame)
         if (self.count - 1) % self.stride:
             return

@@ -9,9 +9,11 @@ import json
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 
 from adaproj_edge.app.replay import ReplayOptions, replay_session
+from adaproj_edge.app.report import SAMPLE_FRAMES, FrameSampler
 from adaproj_edge.cli import main
 from adaproj_edge.session.reader import Scan, iter_records
 from tests.app.golden import session_paths
@@ -82,3 +84,17 @@ def test_distortion_has_a_plain_projector_baseline_units_and_side_views(tmp_path
     sheet_b = cv2.imread(str(tmp_path / "b" / "contact_sheet.png"))
     # the side views are rows of their own under the frames
     assert sheet_a.shape[0] >= sheet_b.shape[0] + 2 * 300
+
+
+def test_frames_are_sampled_only_for_an_output_folder(tmp_path: Path) -> None:
+    """Without outputs the sampler keeps the checksums alone (no PNGs held in memory);
+    with them, a bounded sample for the contact sheet."""
+    frame = np.full((48, 64, 3), 90, np.uint8)
+    info = {"faults": [], "kind": "content-free"}
+    bare, kept = FrameSampler(None, False), FrameSampler(tmp_path, False)
+    for k in range(5 * SAMPLE_FRAMES):
+        bare(k * 1000, frame, info)
+        kept(k * 1000, frame, info)
+    assert len(bare.checksums) == len(kept.checksums) == 5 * SAMPLE_FRAMES
+    assert bare.sample == []
+    assert 0 < len(kept.sample) <= 2 * SAMPLE_FRAMES
