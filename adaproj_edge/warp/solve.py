@@ -63,15 +63,6 @@ def _gauge_vertices(mesh: MeshGeometry) -> tuple[int, int]:
     return a, b
 
 
-def conformal_rows(mesh: MeshGeometry) -> tuple[IntArray, NDArray[np.complex128]]:
-    """:func:`~adaproj_edge.warp.terms.complex_conformal_rows` of ``mesh``, made once per
-    mesh (the conformal solve and the content-aware system both start from them; they
-    are shared: read, never write)."""
-    return mesh.remember(
-        "complex conformal rows", lambda: terms.complex_conformal_rows(mesh.tris, mesh.coords)
-    )
-
-
 def _pin_positions(mesh: MeshGeometry, a: int, b: int) -> tuple[FloatArray, FloatArray]:
     """Positions for the two pinned vertices: a at the origin, b at the surface distance
     from a, in the projector's image direction from a to b."""
@@ -136,7 +127,7 @@ def complex_system(mesh: MeshGeometry) -> ComplexRows:
     def make() -> ComplexRows:
         n = mesh.n
         blocks = [
-            conformal_rows(mesh),
+            terms.complex_conformal_rows(mesh.tris, mesh.coords),
             terms.complex_edge_rows(mesh.edges),
             terms.complex_position_rows(n),
         ]
