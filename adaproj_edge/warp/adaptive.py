@@ -114,6 +114,30 @@ def bends(
     are ``grid_uv`` (R + 1, C + 1, 2): two (R, C) arrays (0 where unknown). From the
     surface's nodes about ``sample`` pixels apart; a kink one or two samples wide (a
     crease) counts only with ``kinks``."""
+    bx, by, xs, ys, step_x, step_y = sampled_bends(surface, sample, kinks)
+    cells = _cells(grid_uv[0, :, 0], grid_uv[:, 0, 1], xs, ys, step_x, step_y)
+    n_rows, n_cols = cells.has.shape
+    if not bx.size:
+        return np.zeros((n_rows, n_cols)), np.zeros((n_rows, n_cols))
+    out = []
+    for per in (bx * cells.size_x[None, :], by * cells.size_y[:, None]):
+        # samples of a cell are contiguous along both axes: a max per block (rows first,
+        # then columns on the transpose: long runs, few calls), 0 where none; a last
+        # row and column of zeros end the last blocks (the bends are >= 0)
+        padded = np.zeros((per.shape[0] + 1, per.shape[1] + 1))
+        padded[:-1, :-1] = np.where(np.isfinite(per), per, 0.0)
+        block = np.maximum.reduceat(padded, cells.row_start, axis=0)
+        block = np.maximum.reduceat(block.T, cells.col_start, axis=0).T
+        out.append(np.where(cells.has, block, 0.0))
+    return out[0], out[1]
+
+
+def sampled_bends(
+    surface: Surface, sample: float = SAMPLE, kinks: bool = False
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, float]:
+    """``kappa h`` per sample along x and along y (per sample step, before the cell's
+    size scales it), at the surface's inner nodes about ``sample`` pixels apart: the two
+    arrays, the samples' pixel columns and rows, and their spacing in pixels."""
     # the surface's own nodes about `sample` pixels apart (no resampling: cheap)
     sx, sy = surface.lattice_scale()
     kx, ky = max(1, round(sample / sx)), max(1, round(sample / sy))
@@ -145,21 +169,7 @@ def bends(
     if not kinks:  # a crease is one or two samples wide: curvature bends over three
         bx = np.pad(np.fmin(np.fmin(bx[:, :-2], bx[:, 1:-1]), bx[:, 2:]), ((0, 0), (1, 1)))
         by = np.pad(np.fmin(np.fmin(by[:-2], by[1:-1]), by[2:]), ((1, 1), (0, 0)))
-    cells = _cells(grid_uv[0, :, 0], grid_uv[:, 0, 1], xs[1:-1], ys[1:-1], kx * sx, ky * sy)
-    n_rows, n_cols = cells.has.shape
-    if not bx.size:
-        return np.zeros((n_rows, n_cols)), np.zeros((n_rows, n_cols))
-    out = []
-    for per in (bx * cells.size_x[None, :], by * cells.size_y[:, None]):
-        # samples of a cell are contiguous along both axes: a max per block (rows first,
-        # then columns on the transpose: long runs, few calls), 0 where none; a last
-        # row and column of zeros end the last blocks (the bends are >= 0)
-        padded = np.zeros((per.shape[0] + 1, per.shape[1] + 1))
-        padded[:-1, :-1] = np.where(np.isfinite(per), per, 0.0)
-        block = np.maximum.reduceat(padded, cells.row_start, axis=0)
-        block = np.maximum.reduceat(block.T, cells.col_start, axis=0).T
-        out.append(np.where(cells.has, block, 0.0))
-    return out[0], out[1]
+    return bx, by, xs[1:-1], ys[1:-1], kx * sx, ky * sy
 
 
 @dataclass(frozen=True)

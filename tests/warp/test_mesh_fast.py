@@ -26,7 +26,7 @@ from adaproj_edge.geometry.triangles import (
     triangle_shapes,
     unique_edges,
 )
-from adaproj_edge.warp.adaptive import bends
+from adaproj_edge.warp.adaptive import bends, sampled_bends
 from adaproj_edge.warp.mesh import MeshGeometry, Topology, planar_shapes
 from adaproj_edge.warp.sampling import SAMPLINGS, probe_index, probes
 from adaproj_edge.warp.warpmap import Grid
@@ -251,41 +251,16 @@ def test_a_kept_sampling_serves_every_surface_of_the_lattice(seed: int, holes: f
 def plain_bends(
     surface: Surface, grid_uv: np.ndarray, sample: float, kinks: bool
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``kappa h`` per sample, then the worst in each cell, cell by cell."""
-    sx, sy = surface.lattice_scale()
-    kx, ky = max(1, round(sample / sx)), max(1, round(sample / sy))
-    X = np.moveaxis(surface.points[::ky, ::kx], -1, 0).astype(np.float32)
-    h, w = surface.shape
-    xs, ys = np.arange(0, w, kx) * sx, np.arange(0, h, ky) * sy
-    dx = (X[:, 1:-1, 2:] - X[:, 1:-1, :-2]) / 2
-    dy = (X[:, 2:, 1:-1] - X[:, :-2, 1:-1]) / 2
-    ddx = X[:, 1:-1, 2:] - 2 * X[:, 1:-1, 1:-1] + X[:, 1:-1, :-2]
-    ddy = X[:, 2:, 1:-1] - 2 * X[:, 1:-1, 1:-1] + X[:, :-2, 1:-1]
-    n = np.stack(
-        [
-            dx[1] * dy[2] - dx[2] * dy[1],
-            dx[2] * dy[0] - dx[0] * dy[2],
-            dx[0] * dy[1] - dx[1] * dy[0],
-        ]
-    )
-    with np.errstate(invalid="ignore", divide="ignore"):
-        length = np.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
-        bx = np.abs(n[0] * ddx[0] + n[1] * ddx[1] + n[2] * ddx[2]) / (
-            length * np.sqrt(dx[0] ** 2 + dx[1] ** 2 + dx[2] ** 2)
-        )
-        by = np.abs(n[0] * ddy[0] + n[1] * ddy[1] + n[2] * ddy[2]) / (
-            length * np.sqrt(dy[0] ** 2 + dy[1] ** 2 + dy[2] ** 2)
-        )
-    if not kinks:
-        bx = np.pad(np.fmin(np.fmin(bx[:, :-2], bx[:, 1:-1]), bx[:, 2:]), ((0, 0), (1, 1)))
-        by = np.pad(np.fmin(np.fmin(by[:-2], by[1:-1]), by[2:]), ((1, 1), (0, 0)))
+    """The per-sample ``kappa h`` (:func:`sampled_bends`), the worst in each cell, cell by
+    cell."""
+    bx, by, xs, ys, step_x, step_y = sampled_bends(surface, sample, kinks)
     cols, rows = grid_uv[0, :, 0], grid_uv[:, 0, 1]
-    ci = np.clip(np.searchsorted(cols, xs[1:-1], side="right") - 1, 0, cols.size - 2)
-    ri = np.clip(np.searchsorted(rows, ys[1:-1], side="right") - 1, 0, rows.size - 2)
+    ci = np.clip(np.searchsorted(cols, xs, side="right") - 1, 0, cols.size - 2)
+    ri = np.clip(np.searchsorted(rows, ys, side="right") - 1, 0, rows.size - 2)
     out = []
-    for per, scale in ((bx, np.diff(cols)[ci][None, :] / (kx * sx)), (by, None)):
+    for per, scale in ((bx, np.diff(cols)[ci][None, :] / step_x), (by, None)):
         if scale is None:
-            per = per * (np.diff(rows)[ri] / (ky * sy))[:, None]
+            per = per * (np.diff(rows)[ri] / step_y)[:, None]
         else:
             per = per * scale
         per = np.where(np.isfinite(per), per, 0.0)
