@@ -264,14 +264,19 @@ def _climb(
     """Pattern search from centre ``c`` (clearance ``r``), four step sizes per
     evaluation (step, step/2, step/4, step/8): move to the best trial that improves r
     and carry on at its step size (twice it after a move at the full step: the optimum
-    may be far); when none improves, the step shrinks 16-fold.
+    may be far); when none improves, the step shrinks 16-fold. A trial farther (L-inf)
+    than the clearance from the centre is not taken: within it no outline is crossed,
+    so the search never leaves the region (outside it the clearance grows without
+    bound, and so would the step).
 
     Each evaluation runs over the boundary edges that can be the nearest ones to its
     trials (:class:`_Nearby`): the same values, so the same path, as over all of them."""
     nearby = _Nearby(segs)
+    reach = np.abs(pattern).max(axis=-1).ravel()  # each trial's L-inf offset per step
     while step > tol:
         trial = (c + step * pattern).reshape(-1, 2)
         rt = nearby.around(c, r, step).clearance(trial)
+        rt[step * reach >= r] = -np.inf
         k = int(np.argmax(rt))
         if rt[k] > r:
             c, r = trial[k], float(rt[k])
