@@ -177,6 +177,7 @@ def content_aware(
         content_map,
         settings.up,
         surface=surface,
+        flatten=True,
     )
     return choice.v, choice.placement, iterations, fraction, {"guard": choice.meta}
 

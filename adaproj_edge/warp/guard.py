@@ -9,10 +9,12 @@ content -> surface, angle error ``sigma1 / sigma2 - 1`` and the spread of
 ``log sqrt(sigma1 sigma2)`` over the triangles that show salient content, each
 weighted by its projector area and the salient share of it - and keeps the
 content-aware warp when it is no worse on both, else the largest blend toward the
-conformal warp that is (the conformal warp itself in the end). ``meta`` says which and
-why. Both the full-grid path (:func:`~adaproj_edge.warp.engine.content_aware`) and the
-device's coarse-to-fine refinement (:class:`~adaproj_edge.warp.planner.WarpPlanner`) call
-it with their two vertex sets.
+conformal warp that is (the conformal warp itself in the end); on a large subject the
+content-aware and conformal warps are also tried with their size flattened
+(:mod:`~adaproj_edge.warp.flatten`). ``meta`` says which and why. Both the full-grid
+path (:func:`~adaproj_edge.warp.engine.content_aware`) and the device's coarse-to-fine
+refinement (:class:`~adaproj_edge.warp.planner.WarpPlanner`) call it with their two
+vertex sets.
 
 The full-grid path also gives the surface: there a candidate the mesh finds better by
 less than :data:`SURE` is judged as the per-pixel display shows it
@@ -33,6 +35,7 @@ from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.warp.displayed import DisplaySamples
+from adaproj_edge.warp.flatten import flattened
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.orientation import unfolded
 from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
@@ -46,6 +49,9 @@ SURE = 0.10
 # and distortion below this counts as none (a developable surface: both are exact)
 FLOOR = 2e-4
 BLENDS = (0.75, 0.5, 0.25)  # share of the content-aware warp in the blends tried
+# a content-aware warp above this share of the conformal warp's size inconsistency on the
+# subject (the issues' goal for it) is tried with its size flattened first
+FLATTEN_ABOVE = 0.6
 
 
 @dataclass(frozen=True)
@@ -132,20 +138,37 @@ def subject_distortion(
         if total <= 0:
             return SubjectDistortion(0.0, 0.0, 0.0)
         return _summary(weight, angle, log_size, total)
-    # the salient share of a triangle: C >= T at its corners and at its centroid
     q = np.take(content_xy, mesh.tris.T, axis=0)  # (3, T, 2)
-    centroids = (q[0] + q[1] + q[2]) / 3.0
-    salient = content_map.weights(np.concatenate([content_xy, centroids]))
-    n = content_xy.shape[0]
-    t = mesh.tris
-    share = (salient[t[:, 0]] + salient[t[:, 1]] + salient[t[:, 2]] + salient[n:]) / 4.0
-    weight = share * mesh.remember("pixel areas", lambda: mesh.pixel_areas)
+    weight = _salient_weights(mesh, content_xy, q, content_map)
     total = float(weight.sum())
     if total <= 0:
         return SubjectDistortion(0.0, 0.0, 0.0)
     keep = weight > 0
     angle, log_size = _distortion(q, mesh, keep)
     return _summary(weight[keep], angle, log_size, total)
+
+
+def subject_weights(
+    mesh: MeshGeometry, content_xy: FloatArray, content_map: ContentMap
+) -> FloatArray:
+    """Each mesh triangle's weight (T,) in the subject's measures, for content positions
+    ``content_xy`` (n, 2): its projector area times its salient share."""
+    q = np.take(content_xy, mesh.tris.T, axis=0)
+    return _salient_weights(mesh, content_xy, q, content_map)
+
+
+def _salient_weights(
+    mesh: MeshGeometry, content_xy: FloatArray, q: FloatArray, content_map: ContentMap
+) -> FloatArray:
+    """:func:`subject_weights` given the triangles' content corners ``q`` (3, T, 2)."""
+    # the salient share of a triangle: C >= T at its corners and at its centroid
+    centroids = (q[0] + q[1] + q[2]) / 3.0
+    salient = content_map.weights(np.concatenate([content_xy, centroids]))
+    n = content_xy.shape[0]
+    t = mesh.tris
+    share = (salient[t[:, 0]] + salient[t[:, 1]] + salient[t[:, 2]] + salient[n:]) / 4.0
+    weight: FloatArray = share * mesh.remember("pixel areas", lambda: mesh.pixel_areas)
+    return weight
 
 
 def _summary(
@@ -157,11 +180,17 @@ def _summary(
     return SubjectDistortion(float(weight @ angle / total), spread, total)
 
 
-def no_worse(a: SubjectDistortion, b: SubjectDistortion, margin: float = MARGIN) -> bool:
-    """Whether ``a`` is no worse than ``b`` in angle and in size, by ``margin``."""
+def no_worse(
+    a: SubjectDistortion,
+    b: SubjectDistortion,
+    margin: float = MARGIN,
+    angle_margin: float | None = None,
+) -> bool:
+    """Whether ``a`` is no worse than ``b`` in angle and in size, by ``margin`` (in
+    angle by ``angle_margin`` when given)."""
+    am = margin if angle_margin is None else angle_margin
     return bool(
-        a.angle <= max(b.angle * (1 - margin), FLOOR)
-        and a.size <= max(b.size * (1 - margin), FLOOR)
+        a.angle <= max(b.angle * (1 - am), FLOOR) and a.size <= max(b.size * (1 - margin), FLOOR)
     )
 
 
@@ -183,10 +212,20 @@ def guard(
     up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
     margin: float = MARGIN,
     surface: Surface | None = None,
+    flatten: bool = False,
 ) -> Choice:
     """Keep the content-aware warp, a blend, or the conformal warp: the one with most of
     the content-aware warp that is no worse than the conformal warp on the salient
     region, in angle error and in size inconsistency.
+
+    With ``flatten``, a content-aware warp whose size inconsistency is above
+    :data:`FLATTEN_ABOVE` of the conformal warp's (a large subject on a doubly curved
+    surface) is first tried with its size flattened (:mod:`~adaproj_edge.warp.flatten`:
+    the same angle error, the smooth part of its size spread over the subject removed);
+    that candidate is kept when it has less size spread and is no worse than the
+    conformal warp, and the blends start from it. Where no candidate or blend is kept,
+    the conformal warp flattened the same way is, when it has less size spread by the
+    margin and no more angle error.
 
     Parameters
     ----------
@@ -203,8 +242,10 @@ def guard(
 
     Returns
     -------
-    Choice; its ``meta`` holds ``choice`` ("content-aware", "blend", "conformal" or
-    "content-aware, nothing salient shows"), ``reason``, ``t`` and the measures.
+    Choice; its ``meta`` holds ``choice`` ("content-aware", "flattened", "blend",
+    "conformal flattened", "conformal"), ``reason``, ``t`` (the content-aware share)
+    and the measures (``flattened``, ``conformal flattened``: what the flattening gave,
+    when it was tried).
     """
     va, pa = aware
     vc, pc = conformal
@@ -215,30 +256,88 @@ def guard(
         meta.update(choice="content-aware", reason="no salient content shows", t=1.0)
         return Choice(va, pa, 1.0, meta)
     judge = _Judge(mesh, content_map, pc.apply(vc), m_conf, surface, margin, meta)
-    if judge.no_worse(pa.apply(va), m_aware, "aware"):
-        meta.update(choice="content-aware", reason="no worse in angle and size", t=1.0)
-        return Choice(va, pa, 1.0, meta)
+    # the candidates, least size spread first: (meta name, positions, placement, measure)
+    candidates = [("content-aware", va, pa, m_aware)]
+    # (a conformal warp without size spread leaves nothing to flatten: a developable
+    # surface)
+    flatten = flatten and m_aware.size > FLATTEN_ABOVE * m_conf.size and m_conf.size > FLOOR
+    if flatten:
+        flat = _flattened(mesh, va, pa, content_map, up, meta, "flattened")
+        if flat is not None and flat[2].size < m_aware.size:
+            candidates.insert(0, ("flattened", *flat))
+    for name, v, p, m in candidates:
+        if judge.no_worse(p.apply(v), m, name):
+            reason = "no worse in angle and size"
+            if name == "flattened":
+                reason = "the content-aware warp with its size flattened over the subject: " + (
+                    "less size spread, " + reason
+                )
+            meta.update(choice=name, reason=reason, t=1.0)
+            return Choice(v, p, 1.0, meta)
+    # blends toward the conformal warp from the candidate of least size spread
+    name, va, pa, _ = candidates[0]
     base = _aligned(vc, va)
     for t in BLENDS:
         vt = t * va + (1 - t) * base
         if not unfolded(vt, mesh.tris):
             continue
-        # judged where the content-aware warp's placement puts it (the measures do not
-        # change with a similarity, and what is salient barely moves): only the blend
-        # kept is placed (a placement costs more than the measure)
+        # judged where the candidate's placement puts it (the measures do not change
+        # with a similarity, and what is salient barely moves): only the blend kept is
+        # placed (a placement costs more than the measure)
         xy = pa.apply(vt)
         m = subject_distortion(mesh, xy, content_map)
         if judge.no_worse(xy, m, "blend"):
             pt = place(mesh, vt, content_map.content_size, up, pa)
             meta.update(
                 choice="blend",
-                reason="the content-aware warp alone is worse in angle or size",
+                reason=f"the {name} warp alone is worse in angle or size",
                 t=t,
                 blend=m.as_dict(),
+                blend_of=name,
             )
             return Choice(vt, pt, t, meta)
+    if flatten:
+        # the conformal warp with its size flattened: its angles are the conformal
+        # warp's (up to the mesh's interpolation of the flattening map), so it is held
+        # to no more angle error, and to the margin in size
+        flat = _flattened(mesh, vc, pc, content_map, up, meta, "conformal flattened")
+        if flat is not None and judge.no_worse(
+            flat[1].apply(flat[0]), flat[2], "conformal flattened", angle_margin=0.0
+        ):
+            meta.update(
+                choice="conformal flattened",
+                reason="no blend is better in both angle and size; the conformal warp "
+                "with its size flattened over the subject has less size spread at no "
+                "more angle error",
+                t=0.0,
+            )
+            return Choice(flat[0], flat[1], 0.0, meta)
     meta.update(choice="conformal", reason="no blend is better in both angle and size", t=0.0)
     return Choice(vc, pc, 0.0, meta)
+
+
+def _flattened(
+    mesh: MeshGeometry,
+    v: FloatArray,
+    placement: Placement,
+    content_map: ContentMap,
+    up: FloatArray | tuple[float, float, float],
+    meta: dict[str, Any],
+    key: str,
+) -> tuple[FloatArray, Placement, SubjectDistortion] | None:
+    """Positions ``v`` (n, 2) with their size flattened over the subject, their placement
+    and mesh measure; None when the flattening does not apply (``meta[key]`` says what
+    it gave)."""
+    weight = subject_weights(mesh, placement.apply(v), content_map)
+    _, log_size = triangle_distortion(mesh, v)
+    vf = flattened(mesh, v, log_size, weight)
+    if vf is None:
+        meta[key] = {"reason": "nothing to fit, too large a rescaling, or a fold"}
+        return None
+    pf = place(mesh, vf, content_map.content_size, up, placement)
+    m = subject_distortion(mesh, pf.apply(vf), content_map)
+    meta[key] = m.as_dict()
+    return vf, pf, m
 
 
 class _Judge:
@@ -263,9 +362,12 @@ class _Judge:
         self._d_conf: SubjectDistortion | None = None
         self._display: DisplaySamples | None = None
 
-    def no_worse(self, xy: FloatArray, m: SubjectDistortion, name: str) -> bool:
-        """Whether positions ``xy`` (n, 2), of mesh measure ``m``, are no worse."""
-        if not no_worse(m, self.m_conf, self.margin):
+    def no_worse(
+        self, xy: FloatArray, m: SubjectDistortion, name: str, angle_margin: float | None = None
+    ) -> bool:
+        """Whether positions ``xy`` (n, 2), of mesh measure ``m``, are no worse (in angle
+        by ``angle_margin`` when given)."""
+        if not no_worse(m, self.m_conf, self.margin, angle_margin):
             return False
         if self.surface is None or no_worse(m, self.m_conf, SURE):
             return True
@@ -278,7 +380,7 @@ class _Judge:
         assert self._d_conf is not None
         d = subject_distortion(self.mesh, xy, self.content_map, self._display)
         self.meta["displayed"][name] = d.as_dict()
-        return bool(d.weight > 0 and no_worse(d, self._d_conf, self.margin))
+        return bool(d.weight > 0 and no_worse(d, self._d_conf, self.margin, angle_margin))
 
 
 def guard_grid(
@@ -308,8 +410,8 @@ def guard_grid(
     """
     flat = image_xy.reshape(-1, 2)
     as_is = Placement(0.0, 1.0, np.zeros(2))  # content pixels already
-    choice = guard(mesh, (flat[mesh.verts], as_is), conformal, content_map, up)
-    if choice.t == 1.0:
+    choice = guard(mesh, (flat[mesh.verts], as_is), conformal, content_map, up, flatten=True)
+    if choice.meta["choice"] == "content-aware":
         return image_xy, choice.meta
     out = np.full_like(flat, np.nan)
     out[mesh.verts] = choice.placement.apply(choice.v)

@@ -424,6 +424,7 @@ class WarpPlanner:
                     content_map,
                     settings.up,
                     surface=surface,
+                    flatten=True,
                 )
                 v, placement, extra["guard"] = choice.v, choice.placement, choice.meta
         if self.plan_settings.warm_start:

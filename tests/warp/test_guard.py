@@ -8,7 +8,8 @@ import pytest
 from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.geometry.analytic import get_surface, simulate_surface
 from adaproj_edge.warp.displayed import STEP, DisplaySamples
-from adaproj_edge.warp.guard import guard, subject_distortion, triangle_distortion
+from adaproj_edge.warp.engine import WarpSettings, refine
+from adaproj_edge.warp.guard import guard, guard_grid, subject_distortion, triangle_distortion
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.placement import place
 from adaproj_edge.warp.solve import solve_conformal
@@ -86,3 +87,28 @@ def test_the_display_measure_is_what_the_display_shows(name: str) -> None:
         d = d.select(in_mask(d, subject_masks()[mask]))
         assert ours.angle == pytest.approx(d.angle_mean, rel=0.02)
         assert ours.size == pytest.approx(d.size_std, rel=0.02)
+
+
+@pytest.mark.slow
+def test_the_device_guard_shows_the_flattened_warp_it_chose() -> None:
+    # a large subject on a bowl: the content-aware warp's size is flattened, and the
+    # grid the device displays must be that warp, not the one it was given
+    s = surface("bowl")
+    mesh = MeshGeometry.build(s, Grid(20, 20))
+    vc = solve_conformal(mesh)
+    pc = place(mesh, vc, CONTENT)
+    cmap = ContentMap(subject_masks()["quarter"], CONTENT)
+    # the alternation's own result, before any guard (its fixed point does not depend
+    # on the start)
+    va, pa, _, _ = refine(mesh, vc, pc, cmap, WarpSettings())
+    rows, cols = mesh.grid_uv.shape[:2]
+    given = np.full((rows * cols, 2), np.nan)
+    given[mesh.verts] = pa.apply(va)
+    kept, meta = guard_grid(given.reshape(rows, cols, 2), mesh, (vc, pc), cmap)
+    assert meta["choice"] == "flattened", meta["choice"]
+    shown = kept.reshape(-1, 2)[mesh.verts]
+    assert not np.allclose(shown, given[mesh.verts])
+    m_shown = subject_distortion(mesh, shown, cmap)
+    m_given = subject_distortion(mesh, pa.apply(va), cmap)
+    assert m_shown.size < m_given.size
+    assert m_shown.size == pytest.approx(meta["flattened"]["size"], rel=1e-9)
