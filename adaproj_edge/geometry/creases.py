@@ -22,6 +22,7 @@ from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
 
 ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, of a crease
+SLIGHT = 1e-3  # ... of one it may clip a sliver off
 CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this make a crease
 FIT = 0.25  # the two planes must explain the surface this much better than the triangle
 CURVED_FIT = 0.2  # ... or, on a curved crease, this much better than its chord does
@@ -128,22 +129,25 @@ def unfold_measured(
         + (probes[1] - tri_pts[None, :, 0, 1]) * normals[1]
         + (probes[2] - tri_pts[None, :, 0, 2]) * normals[2]
     )
-    rough = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=0) > ROUGH * size
-    if not np.any(rough):
+    off = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=0)
+    rough = off > ROUGH * size
+    # a crease may run just past a corner: the triangle is then nearly flat, but its
+    # chord plane is tilted by the sliver across the crease (up to ROUGH): it is a
+    # candidate too, and it does not lend its tilted plane to its corners
+    slight = off > SLIGHT * size
+    if not np.any(slight):
         return _nothing_folded(tri_pts)
-    # the plane of each vertex: area-weighted normal of its smooth triangles
-    smooth = np.flatnonzero(~rough & np.isfinite(normals).all(axis=0))
-    weighted = normals[:, smooth] * size[smooth] ** 2  # (3, S), added at each corner
-    corners = tris[smooth].ravel()  # (3 S,): corner k of triangle t at 3 t + k
-    n_points = points.shape[0]
-    acc = np.empty((3, n_points))
-    for axis in range(3):
-        acc[axis] = np.bincount(corners, np.repeat(weighted[axis], 3), minlength=n_points)
+    # the plane of each vertex: area-weighted normal of its flat triangles, or where it
+    # has none (a curved wall) of its smooth ones
+    seen = np.isfinite(normals).all(axis=0)
+    acc = _vertex_normals(tris, normals, size, ~slight & seen, points.shape[0])
+    loose = _vertex_normals(tris, normals, size, ~rough & slight & seen, points.shape[0])
+    acc = np.where(np.any(acc != 0.0, axis=0), acc, loose)
     with np.errstate(invalid="ignore", divide="ignore"):
         vn = acc / np.sqrt(dot_first(acc, acc))  # (3, N)
     # only triangles whose corners' planes differ can hold a crease (checked for all
     # rough triangles at once; the loop below then handles the few that remain)
-    rough_t = np.flatnonzero(rough)
+    rough_t = np.flatnonzero(slight)
     corner_n = vn[:, tris[rough_t]]  # (3, R, 3)
     with np.errstate(invalid="ignore"):
         differ = np.any(dot_first(corner_n, corner_n[:, :, :1]) < CREASE_COS, axis=1)
@@ -209,6 +213,20 @@ def unfold_measured(
         if not straight[c]:  # a curved crease: soften the side choice
             unfolding.softness[t] = SOFTNESS * worst[c]
     return unfolding
+
+
+def _vertex_normals(
+    tris: IntArray, normals: FloatArray, size: FloatArray, use: NDArray[np.bool_], n: int
+) -> FloatArray:
+    """Sum (3, n) at each of the ``n`` vertices of the normals (3, T) of the triangles
+    ``tris`` (T, 3) where ``use`` holds, weighted by their squared ``size``."""
+    at = np.flatnonzero(use)
+    weighted = normals[:, at] * size[at] ** 2  # (3, S), added at each corner
+    corners = tris[at].ravel()  # (3 S,): corner k of triangle t at 3 t + k
+    acc = np.empty((3, n))
+    for axis in range(3):
+        acc[axis] = np.bincount(corners, np.repeat(weighted[axis], 3), minlength=n)
+    return acc
 
 
 def _nothing_folded(tri_pts: FloatArray) -> Unfolding:
