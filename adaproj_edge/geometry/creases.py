@@ -8,6 +8,13 @@ on the second plane are rotated about the planes' line of intersection into the 
 - the surface is unfolded there, exactly as it develops. The warp solve uses the
 unfolded shapes, and the renderer unfolds each pixel's surface point the same way, so
 both walls of a corner are exact up to the crease itself.
+
+A crease that runs a hair past a grid vertex clips a sliver off the triangles there:
+they lie within ``ROUGH`` of their plane, yet that plane is tilted. Where some triangle
+is rough, triangles farther than ``SLIGHT`` from their plane are looked at too (as
+straight creases only: their two planes must explain them as a flat triangle's plane
+does), and a vertex takes its plane from its flat triangles where it has any, so a
+sliver's tilt does not spoil its neighbours' unfolding.
 """
 
 from __future__ import annotations
@@ -134,8 +141,10 @@ def unfold_measured(
     # a crease may run just past a corner: the triangle is then nearly flat, but its
     # chord plane is tilted by the sliver across the crease (up to ROUGH): it is a
     # candidate too, and it does not lend its tilted plane to its corners
+    # (without a rough triangle there is no crease to look for: a smooth surface costs
+    # no more than that look)
     slight = off > SLIGHT * size
-    if not np.any(slight):
+    if not np.any(rough):
         return _nothing_folded(tri_pts)
     # the plane of each vertex: area-weighted normal of its flat triangles, or where it
     # has none (a curved wall) of its smooth ones
@@ -183,8 +192,11 @@ def unfold_measured(
     # meeting a floor): far better than the triangle does (a smooth curved patch is
     # explained about as badly by its corners' planes as by its chord)
     chord = np.max(np.where(np.isfinite(dist[:, cand]), dist[:, cand], 0.0), axis=0)
-    straight = worst <= FIT * ROUGH * size[cand]
-    keep = np.any(seen, axis=1) & (straight | (worst <= CURVED_FIT * chord))
+    # (a triangle with a sliver across the crease is nearly flat: its two planes must
+    # explain it as well as a flat one's plane does, and it is never a curved crease)
+    rough_c = rough[cand]
+    straight = worst <= FIT * np.where(rough_c, ROUGH, SLIGHT) * size[cand]
+    keep = np.any(seen, axis=1) & (straight | (rough_c & (worst <= CURVED_FIT * chord)))
     if not np.any(keep):
         return _nothing_folded(tri_pts)
     t_count = tris.shape[0]

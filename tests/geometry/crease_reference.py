@@ -78,9 +78,11 @@ def decide(
     fit = np.minimum(np.abs((probe - pa) @ na), np.abs((probe - pb) @ nb))
     worst = float(np.max(fit))
     chord = float(np.max(np.where(np.isfinite(chord_dist), chord_dist, 0.0)))
-    if worst > FIT * ROUGH * size and worst > CURVED_FIT * chord:
+    rough = chord > ROUGH * size  # else only a sliver: it must be straight
+    straight = FIT * (ROUGH if rough else SLIGHT) * size
+    if worst > straight and (not rough or worst > CURVED_FIT * chord):
         return None
-    softness = SOFTNESS * worst if worst > FIT * ROUGH * size else 0.0
+    softness = SOFTNESS * worst if worst > straight else 0.0
     return na, pa, nb, pb, softness, group_b
 
 
@@ -120,6 +122,8 @@ def unfold_reference(
     with np.errstate(invalid="ignore", divide="ignore"):
         vertex_n = vertex_sum / np.linalg.norm(vertex_sum, axis=1, keepdims=True)
     out = {}
+    if not rough:
+        return out
     for t in sorted(slight):
         corner_n = vertex_n[tris[t]]
         if not np.all(np.isfinite(corner_n)):
