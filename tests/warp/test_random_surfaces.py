@@ -49,7 +49,7 @@ def test_the_other_cases_the_crease_fix_mended(index: int) -> None:
     """Seed 1: case 121, a corner seen tilted 16 deg (11x11, adaptive, the paper's
     alternation: size std 6.0e-3 -> 8e-6); case 31, a half cylinder (r 0.96 m) on a floor
     8 cm under the projector, content mode with a subject: its angle error there was
-    1.04x the conformal warp's (0.69x now)."""
+    1.04x the conformal warp's (0.51x now)."""
     case = draw_case(1, index)
     out = run_case(case)
     assert not out.failures, (case.describe(), out.failures)
