@@ -8,6 +8,13 @@ on the second plane are rotated about the planes' line of intersection into the 
 - the surface is unfolded there, exactly as it develops. The warp solve uses the
 unfolded shapes, and the renderer unfolds each pixel's surface point the same way, so
 both walls of a corner are exact up to the crease itself.
+
+A crease that runs a hair past a grid vertex clips a sliver off the triangles there:
+they lie within ``ROUGH`` of their plane, yet that plane is tilted. Where some triangle
+is rough, triangles farther than ``SLIGHT`` from their plane are looked at too (as
+straight creases only: their two planes must explain them as a flat triangle's plane
+does), and a vertex takes its plane from its flat triangles where it has any, so a
+sliver's tilt does not spoil its neighbours' unfolding.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
 
 ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, of a crease
+SLIGHT = 1e-3  # ... of one it may clip a sliver off
 CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this make a crease
 FIT = 0.25  # the two planes must explain the surface this much better than the triangle
 CURVED_FIT = 0.2  # ... or, on a curved crease, this much better than its chord does
@@ -128,22 +136,27 @@ def unfold_measured(
         + (probes[1] - tri_pts[None, :, 0, 1]) * normals[1]
         + (probes[2] - tri_pts[None, :, 0, 2]) * normals[2]
     )
-    rough = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=0) > ROUGH * size
+    off = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=0)
+    rough = off > ROUGH * size
+    # a crease may run just past a corner: the triangle is then nearly flat, but its
+    # chord plane is tilted by the sliver across the crease (up to ROUGH): it is a
+    # candidate too, and it does not lend its tilted plane to its corners
+    # (without a rough triangle there is no crease to look for: a smooth surface costs
+    # no more than that look)
+    slight = off > SLIGHT * size
     if not np.any(rough):
         return _nothing_folded(tri_pts)
-    # the plane of each vertex: area-weighted normal of its smooth triangles
-    smooth = np.flatnonzero(~rough & np.isfinite(normals).all(axis=0))
-    weighted = normals[:, smooth] * size[smooth] ** 2  # (3, S), added at each corner
-    corners = tris[smooth].ravel()  # (3 S,): corner k of triangle t at 3 t + k
-    n_points = points.shape[0]
-    acc = np.empty((3, n_points))
-    for axis in range(3):
-        acc[axis] = np.bincount(corners, np.repeat(weighted[axis], 3), minlength=n_points)
+    # the plane of each vertex: area-weighted normal of its flat triangles, or where it
+    # has none (a curved wall) of its smooth ones
+    seen = np.isfinite(normals).all(axis=0)
+    acc = _vertex_normals(tris, normals, size, ~slight & seen, points.shape[0])
+    loose = _vertex_normals(tris, normals, size, ~rough & slight & seen, points.shape[0])
+    acc = np.where(np.any(acc != 0.0, axis=0), acc, loose)
     with np.errstate(invalid="ignore", divide="ignore"):
         vn = acc / np.sqrt(dot_first(acc, acc))  # (3, N)
     # only triangles whose corners' planes differ can hold a crease (checked for all
     # rough triangles at once; the loop below then handles the few that remain)
-    rough_t = np.flatnonzero(rough)
+    rough_t = np.flatnonzero(slight)
     corner_n = vn[:, tris[rough_t]]  # (3, R, 3)
     with np.errstate(invalid="ignore"):
         differ = np.any(dot_first(corner_n, corner_n[:, :, :1]) < CREASE_COS, axis=1)
@@ -179,8 +192,11 @@ def unfold_measured(
     # meeting a floor): far better than the triangle does (a smooth curved patch is
     # explained about as badly by its corners' planes as by its chord)
     chord = np.max(np.where(np.isfinite(dist[:, cand]), dist[:, cand], 0.0), axis=0)
-    straight = worst <= FIT * ROUGH * size[cand]
-    keep = np.any(seen, axis=1) & (straight | (worst <= CURVED_FIT * chord))
+    # (a triangle with a sliver across the crease is nearly flat: its two planes must
+    # explain it as well as a flat one's plane does, and it is never a curved crease)
+    rough_c = rough[cand]
+    straight = worst <= FIT * np.where(rough_c, ROUGH, SLIGHT) * size[cand]
+    keep = np.any(seen, axis=1) & (straight | (rough_c & (worst <= CURVED_FIT * chord)))
     if not np.any(keep):
         return _nothing_folded(tri_pts)
     t_count = tris.shape[0]
@@ -209,6 +225,20 @@ def unfold_measured(
         if not straight[c]:  # a curved crease: soften the side choice
             unfolding.softness[t] = SOFTNESS * worst[c]
     return unfolding
+
+
+def _vertex_normals(
+    tris: IntArray, normals: FloatArray, size: FloatArray, use: NDArray[np.bool_], n: int
+) -> FloatArray:
+    """Sum (3, n) at each of the ``n`` vertices of the normals (3, T) of the triangles
+    ``tris`` (T, 3) where ``use`` holds, weighted by their squared ``size``."""
+    at = np.flatnonzero(use)
+    weighted = normals[:, at] * size[at] ** 2  # (3, S), added at each corner
+    corners = tris[at].ravel()  # (3 S,): corner k of triangle t at 3 t + k
+    acc = np.empty((3, n))
+    for axis in range(3):
+        acc[axis] = np.bincount(corners, np.repeat(weighted[axis], 3), minlength=n)
+    return acc
 
 
 def _nothing_folded(tri_pts: FloatArray) -> Unfolding:

@@ -17,6 +17,7 @@ from adaproj_edge.geometry.creases import (
     FIT,
     ROUGH,
     SAME_SIDE_COS,
+    SLIGHT,
     SOFTNESS,
 )
 
@@ -77,9 +78,11 @@ def decide(
     fit = np.minimum(np.abs((probe - pa) @ na), np.abs((probe - pb) @ nb))
     worst = float(np.max(fit))
     chord = float(np.max(np.where(np.isfinite(chord_dist), chord_dist, 0.0)))
-    if worst > FIT * ROUGH * size and worst > CURVED_FIT * chord:
+    rough = chord > ROUGH * size  # else only a sliver: it must be straight
+    straight = FIT * (ROUGH if rough else SLIGHT) * size
+    if worst > straight and (not rough or worst > CURVED_FIT * chord):
         return None
-    softness = SOFTNESS * worst if worst > FIT * ROUGH * size else 0.0
+    softness = SOFTNESS * worst if worst > straight else 0.0
     return na, pa, nb, pb, softness, group_b
 
 
@@ -93,6 +96,7 @@ def unfold_reference(
     sizes: dict[int, float] = {}
     dists: dict[int, FloatArray] = {}
     rough: set[int] = set()
+    slight: set[int] = set()
     for t, (a, b, c) in enumerate(tris):
         p0, p1, p2 = points[a], points[b], points[c]
         n = -np.cross(p1 - p0, p2 - p0)  # facing the projector
@@ -103,16 +107,24 @@ def unfold_reference(
         finite = dists[t][np.isfinite(dists[t])]
         if finite.size and float(finite.max()) > ROUGH * sizes[t]:
             rough.add(t)
-    vertex_sum = np.zeros_like(points, dtype=np.float64)
+        if finite.size and float(finite.max()) > SLIGHT * sizes[t]:
+            slight.add(t)
+    # a vertex's plane: from its flat triangles, or where it has none from its smooth ones
+    flat_sum = np.zeros_like(points, dtype=np.float64)
+    smooth_sum = np.zeros_like(points, dtype=np.float64)
     for t, corners in enumerate(tris):
         if t in rough or not np.all(np.isfinite(normals[t])):
             continue
         for v in corners:
-            vertex_sum[v] += normals[t] * sizes[t] ** 2
+            (smooth_sum if t in slight else flat_sum)[v] += normals[t] * sizes[t] ** 2
+    has_flat = np.any(flat_sum != 0.0, axis=1, keepdims=True)
+    vertex_sum = np.where(has_flat, flat_sum, smooth_sum)
     with np.errstate(invalid="ignore", divide="ignore"):
         vertex_n = vertex_sum / np.linalg.norm(vertex_sum, axis=1, keepdims=True)
     out = {}
-    for t in sorted(rough):
+    if not rough:
+        return out
+    for t in sorted(slight):
         corner_n = vertex_n[tris[t]]
         if not np.all(np.isfinite(corner_n)):
             continue
