@@ -299,7 +299,9 @@ def guard(
     if flatten:
         # the conformal warp with its size flattened: its angles are the conformal
         # warp's (up to the mesh's interpolation of the flattening map), so it is held
-        # to no more angle error, and to the margin in size
+        # to no more angle error, and to the margin in size (judged where it is placed:
+        # judged at the conformal warp's placement and placed only when kept, the
+        # bumps' face subject was shown at 1.14x the conformal warp's size spread)
         flat = _flattened(mesh, vc, pc, content_map, up, meta, "conformal flattened")
         if flat is not None and judge.no_worse(
             flat[1].apply(flat[0]), flat[2], "conformal flattened", angle_margin=0.0
