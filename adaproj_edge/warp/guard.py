@@ -269,9 +269,7 @@ def guard(
         if judge.no_worse(p.apply(v), m, name):
             reason = "no worse in angle and size"
             if name == "flattened":
-                reason = "the content-aware warp with its size flattened over the subject: " + (
-                    "less size spread, " + reason
-                )
+                reason = "its size flattened over the subject, less size spread; " + reason
             meta.update(choice=name, reason=reason, t=1.0)
             return Choice(v, p, 1.0, meta)
     # blends toward the conformal warp from the candidate of least size spread
