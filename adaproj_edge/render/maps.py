@@ -103,13 +103,17 @@ class PixelLayout:
             return self
         cx, fx = grid_cells(grid_uv[0, :, 0], projector.width, step)
         cy, fy = grid_cells(grid_uv[:, 0, 1], projector.height, step)
-        iy, ix = np.nonzero(~ok[self.tri])
+        # only pixels on a grid line or a diagonal can lie on two triangles
+        iy, ix = np.nonzero(
+            (fx[None, :] == 0.0) | (fy[:, None] == 0.0) | (fx[None, :] == fy[:, None])
+        )
+        lost = ~ok[self.tri[iy, ix]]
+        iy, ix = iy[lost], ix[lost]
         cx, fx, cy, fy = cx[ix], fx[ix], cy[iy], fy[iy]
-        line = (fx == 0.0) | (fy == 0.0) | (fx == fy)
-        iy, ix, cx, fx, cy, fy = (a[line] for a in (iy, ix, cx, fx, cy, fy))
         if iy.size == 0:
             return self
         tri, l1, l2 = self.tri.copy(), self.l1.copy(), self.l2.copy()
+        corners, tris = self.corners.copy(), grid_triangles(rows - 1, cols - 1)
         todo = np.ones(iy.size, dtype=bool)
         for back_x, back_y, upper in itertools.product((0, 1), (0, 1), (True, False)):
             # the cell left of / above the line, the pixel on its far side (f = 1)
@@ -124,12 +128,12 @@ class PixelLayout:
                 continue
             pix = (iy[hit], ix[hit])
             tri[pix] = t[hit]
+            corners[:, pix[0], pix[1]] = tris[t[hit]].T
             l1[pix] = np.where(upper, gx - gy, gx)[hit]
             l2[pix] = np.where(upper, gy, gy - gx)[hit]
             todo &= ~hit
         if todo.all():
             return self
-        corners = np.moveaxis(grid_triangles(rows - 1, cols - 1)[tri], -1, 0).astype(np.int32)
         return PixelLayout(tri, corners, 1.0 - l1 - l2, l1, l2)
 
 
