@@ -61,24 +61,30 @@ def _smooth(
     h, w = known.shape
     fill = np.full((h, w, 2), np.nan)
     ys, xs = np.nonzero(region)
-    pad = int(np.ceil(ramp + 4.0 * sigma))
+    pad = int(np.ceil(ramp + 3.0 * sigma))
     y0, y1 = max(ys.min() - pad, 0), min(ys.max() + pad + 1, h)
     x0, x1 = max(xs.min() - pad, 0), min(xs.max() + pad + 1, w)
-    k = known[y0:y1, x0:x1].astype(np.float64)
+    k = known[y0:y1, x0:x1].astype(np.float32)
+    # coordinates and values about the window's middle (the blurs run in float32)
     v = values[y0:y1, x0:x1].astype(np.float64)
-    yy, xx = np.mgrid[0 : y1 - y0, 0 : x1 - x0].astype(np.float64)
+    mean = (v * k[..., None]).sum(axis=(0, 1)) / max(float(k.sum()), 1.0)
+    v = v - mean
+    yy, xx = np.mgrid[0 : y1 - y0, 0 : x1 - x0].astype(np.float32)
+    yy -= np.float32(0.5 * (y1 - y0 - 1))
+    xx -= np.float32(0.5 * (x1 - x0 - 1))
 
-    def blur(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    def blur(a: NDArray[np.float32]) -> NDArray[np.float64]:
         out = cv2.GaussianBlur(a, (0, 0), sigma, borderType=cv2.BORDER_CONSTANT)
         return np.asarray(out, dtype=np.float64)
 
     # Gaussian moments of the known pixels about each pixel (dx = x' - x, dy = y' - y)
     s0, sx, sy = blur(k), blur(k * xx), blur(k * yy)
     sxx, sxy, syy = blur(k * xx * xx), blur(k * xx * yy), blur(k * yy * yy)
-    mx, my = sx - xx * s0, sy - yy * s0
-    mxx = sxx - 2.0 * xx * sx + xx * xx * s0
-    mxy = sxy - xx * sy - yy * sx + xx * yy * s0
-    myy = syy - 2.0 * yy * sy + yy * yy * s0
+    x, y = xx.astype(np.float64), yy.astype(np.float64)
+    mx, my = sx - x * s0, sy - y * s0
+    mxx = sxx - 2.0 * x * sx + x * x * s0
+    mxy = sxy - x * sy - y * sx + x * y * s0
+    myy = syy - 2.0 * y * sy + y * y * s0
     # the plane's value at the pixel: [1 0 0] M^-1 r, M the moments' 3x3 matrix
     a00 = mxx * myy - mxy * mxy  # cofactors of M's first row
     a01 = my * mxy - mx * myy
@@ -88,11 +94,11 @@ def _smooth(
         # a sound plane: the known pixels spread both ways (det well away from 0)
         sound = det > 1e-3 * s0 * s0 * s0 * sigma**4
         for c in range(2):
-            f = k * v[..., c]
+            f = (k * v[..., c]).astype(np.float32)
             r0, rx, ry = blur(f), blur(f * xx), blur(f * yy)
-            rx, ry = rx - xx * r0, ry - yy * r0
+            rx, ry = rx - x * r0, ry - y * r0
             plane = (a00 * r0 + a01 * rx + a02 * ry) / det
-            fill[y0:y1, x0:x1, c] = np.where(sound, plane, r0 / s0)
+            fill[y0:y1, x0:x1, c] = np.where(sound, plane, r0 / s0) + mean[c]
     return fill
 
 
