@@ -30,13 +30,14 @@ percent per cell even on a tilted plane.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from adaproj_edge.arrays import FloatArray, IntArray
+from adaproj_edge.arrays import BoolArray, FloatArray, IntArray
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import grid_cells, grid_triangles
@@ -80,6 +81,61 @@ class PixelLayout:
         pixel_corners = np.moveaxis(corners[tri], -1, 0).astype(np.int32)
         return cls(tri, pixel_corners, 1.0 - l1 - l2, l1, l2)
 
+    def onto_mesh(
+        self, grid_uv: FloatArray, projector: Projector, depth: FloatArray, step: int = 1
+    ) -> PixelLayout:
+        """The layout with every pixel that lies on an edge or corner of a triangle with
+        surface given to such a triangle.
+
+        A pixel on a grid line (grid vertices sit on integer pixel centres) is given to
+        the cell right of / below the line; where that cell has no surface and the one
+        left of / above it has, the pixel lies on the mesh's outline and would show
+        black: the outline's last column or row of pixels, where the content the mesh
+        places there (up to its inscribed rectangle, :mod:`~adaproj_edge.warp.placement`)
+        is lost. Likewise a pixel on a cell's diagonal is given to the upper triangle.
+        ``depth`` (R, C): vertex depths, NaN without surface; ``step`` as in
+        :meth:`build`. Returns ``self`` when no pixel moves.
+        """
+        rows, cols = grid_uv.shape[:2]
+        has = np.isfinite(np.asarray(depth, dtype=np.float64).reshape(-1))
+        ok: BoolArray = np.asarray(has[grid_triangles(rows - 1, cols - 1)].all(axis=1), dtype=bool)
+        if ok.all() or not ok.any():
+            return self
+        cx, fx = grid_cells(grid_uv[0, :, 0], projector.width, step)
+        cy, fy = grid_cells(grid_uv[:, 0, 1], projector.height, step)
+        # only pixels on a grid line or a diagonal can lie on two triangles
+        iy, ix = np.nonzero(
+            (fx[None, :] == 0.0) | (fy[:, None] == 0.0) | (fx[None, :] == fy[:, None])
+        )
+        lost = ~ok[self.tri[iy, ix]]
+        iy, ix = iy[lost], ix[lost]
+        cx, fx, cy, fy = cx[ix], fx[ix], cy[iy], fy[iy]
+        if iy.size == 0:
+            return self
+        tri, l1, l2 = self.tri.copy(), self.l1.copy(), self.l2.copy()
+        corners, tris = self.corners.copy(), grid_triangles(rows - 1, cols - 1)
+        todo = np.ones(iy.size, dtype=bool)
+        for back_x, back_y, upper in itertools.product((0, 1), (0, 1), (True, False)):
+            # the cell left of / above the line, the pixel on its far side (f = 1)
+            bx = (fx == 0.0) & (cx > 0) if back_x else np.ones_like(todo)
+            by = (fy == 0.0) & (cy > 0) if back_y else np.ones_like(todo)
+            gx = np.where(back_x, 1.0, fx)
+            gy = np.where(back_y, 1.0, fy)
+            inside = (gx >= gy) if upper else (gx <= gy)
+            t = 2 * ((cy - back_y) * (cols - 1) + cx - back_x) + (0 if upper else 1)
+            hit = todo & bx & by & inside & ok[np.clip(t, 0, ok.size - 1)]
+            if not hit.any():
+                continue
+            pix = (iy[hit], ix[hit])
+            tri[pix] = t[hit]
+            corners[:, pix[0], pix[1]] = tris[t[hit]].T
+            l1[pix] = np.where(upper, gx - gy, gx)[hit]
+            l2[pix] = np.where(upper, gy, gy - gx)[hit]
+            todo &= ~hit
+        if todo.all():
+            return self
+        return PixelLayout(tri, corners, 1.0 - l1 - l2, l1, l2)
+
 
 @dataclass(frozen=True)
 class PixelWeights:
@@ -116,6 +172,8 @@ class PixelWeights:
         grid's :class:`PixelLayout`, when the caller keeps it."""
         if layout is None:
             layout = PixelLayout.build(grid_uv, projector)
+        if depth is not None:
+            layout = layout.onto_mesh(grid_uv, projector, depth)
         c0, c1, c2 = layout.corners
         if depth is None:
             w = np.stack([layout.l0, layout.l1, layout.l2])

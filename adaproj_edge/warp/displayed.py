@@ -62,7 +62,6 @@ class DisplaySamples:
     def build(cls, mesh: MeshGeometry, surface: Surface, step: int = STEP) -> DisplaySamples:
         """The samples of ``mesh`` (of ``surface``) at every ``step``-th pixel."""
         proj = surface.projector
-        layout = PixelLayout.build(mesh.grid_uv, proj, step)
         ys = np.arange(0, proj.height, step, dtype=np.float64)
         xs = np.arange(0, proj.width, step, dtype=np.float64)
         uv = np.stack(np.meshgrid(xs, ys), axis=-1)
@@ -70,6 +69,8 @@ class DisplaySamples:
         depth = mesh.points[:, 2].copy()
         depth[~mesh.used] = np.nan
         depth = depth.reshape(mesh.grid_uv.shape[:2])
+        layout = PixelLayout.build(mesh.grid_uv, proj, step)
+        layout = layout.onto_mesh(mesh.grid_uv, proj, depth, step)
         bary = np.stack([layout.l0, layout.l1, layout.l2])
         grid_corners, w = surface_weights(
             mesh.grid_uv, depth, proj, surface, layout.tri, bary, points

@@ -43,6 +43,24 @@ def test_a_reversed_patch_is_found_and_smoothed_away_locally() -> None:
     np.testing.assert_array_equal(out[far], fold[far])  # untouched away from it
 
 
+def test_smoothing_a_fold_next_to_the_outline_keeps_the_outline() -> None:
+    """A fold against the map's outline (the frame's edge, a silhouette; issue 13: a
+    cylinder on a floor, its crease through the frame's edge): the smoothing fits the
+    map around it, and an affine map's outline stays where it was. A mean of the known
+    pixels (all on one side) pulled the outline inward by several pixels, and the
+    content placed up to it was not shown."""
+    m = affine_map()
+    m[:, 60:] = np.nan  # the outline: column 59
+    fold = m.copy()
+    fold[30, 57, 0] = m[30, 55, 0]
+    assert fold_mask(fold).any()
+    out, n = guard(fold, m)
+    assert not fold_mask(out).any() and 0 < n < 0.05 * m.shape[0] * m.shape[1]
+    assert np.isnan(out[:, 60:]).all()
+    # the affine map is the ground truth; the outline's column within 0.05 px of it
+    np.testing.assert_allclose(out[:, 59], m[:, 59], atol=0.05)
+
+
 def test_not_shown_pixels_are_no_folds() -> None:
     m = affine_map()
     m[:, :20] = np.nan
