@@ -15,6 +15,14 @@ is rough, triangles farther than ``SLIGHT`` from their plane are looked at too (
 straight creases only: their two planes must explain them as a flat triangle's plane
 does), and a vertex takes its plane from its flat triangles where it has any, so a
 sliver's tilt does not spoil its neighbours' unfolding.
+
+A straight crease may have a curved side (a wall meeting a cone along a ruling): its
+rough triangles are then explained neither by their corners' planes (the cone bends
+away from them) nor as a curved crease (their chord is too good). For those, each
+side is fitted with a quadratic patch from its smooth triangles next to the crease
+(:mod:`adaproj_edge.geometry.ruled_crease`); where the patches meet along a straight
+line and explain the triangle to ``RULED_FIT`` of its size, it is unfolded about that
+line with the patches' tangent planes there.
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
+from adaproj_edge.geometry.ruled_crease import crease_planes, side_patch
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
 
@@ -34,6 +43,7 @@ CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this ma
 FIT = 0.25  # the two planes must explain the surface this much better than the triangle
 CURVED_FIT = 0.2  # ... or, on a curved crease, this much better than its chord does
 SAME_SIDE_COS = float(np.cos(np.deg2rad(12.0)))  # two corners of one side: nearly one plane
+RULED_FIT = 1e-3  # a straight crease with curved sides: their patches explain them so
 SOFTNESS = 4.0  # on a curved crease, the side is chosen softly over this many fit residuals
 
 
@@ -148,9 +158,9 @@ def unfold_measured(
         return _nothing_folded(tri_pts)
     # the plane of each vertex: area-weighted normal of its flat triangles, or where it
     # has none (a curved wall) of its smooth ones
-    seen = np.isfinite(normals).all(axis=0)
-    acc = _vertex_normals(tris, normals, size, ~slight & seen, points.shape[0])
-    loose = _vertex_normals(tris, normals, size, ~rough & slight & seen, points.shape[0])
+    seen_t = np.isfinite(normals).all(axis=0)
+    acc = _vertex_normals(tris, normals, size, ~slight & seen_t, points.shape[0])
+    loose = _vertex_normals(tris, normals, size, ~rough & slight & seen_t, points.shape[0])
     acc = np.where(np.any(acc != 0.0, axis=0), acc, loose)
     with np.errstate(invalid="ignore", divide="ignore"):
         vn = acc / np.sqrt(dot_first(acc, acc))  # (3, N)
@@ -196,7 +206,28 @@ def unfold_measured(
     # explain it as well as a flat one's plane does, and it is never a curved crease)
     rough_c = rough[cand]
     straight = worst <= FIT * np.where(rough_c, ROUGH, SLIGHT) * size[cand]
-    keep = np.any(seen, axis=1) & (straight | (rough_c & (worst <= CURVED_FIT * chord)))
+    # a straight crease with a curved side (a wall meeting a cone along a ruling): its
+    # corners' planes miss the crease; each side's curve across it finds the planes
+    curved_crease = rough_c & (worst <= CURVED_FIT * chord)
+    retry = np.flatnonzero(np.any(seen, axis=1) & rough_c & ~straight & ~curved_crease)
+    if retry.size:
+        excluded = np.zeros(tris.shape[0], dtype=bool)
+        excluded[rough_t[differ]] = True
+        curved = _ruled_planes(
+            retry,
+            cand,
+            tris,
+            tri_pts,
+            normals,
+            probes,
+            size,
+            (seen_t & ~slight, seen_t & ~rough & slight & ~excluded),
+            (na, pa, nb, pb),
+            pair_a,
+            lone,
+        )
+        straight[curved] = True
+    keep = np.any(seen, axis=1) & (straight | curved_crease)
     if not np.any(keep):
         return _nothing_folded(tri_pts)
     t_count = tris.shape[0]
@@ -225,6 +256,76 @@ def unfold_measured(
         if not straight[c]:  # a curved crease: soften the side choice
             unfolding.softness[t] = SOFTNESS * worst[c]
     return unfolding
+
+
+def _ruled_planes(
+    retry: IntArray,
+    cand: IntArray,
+    tris: IntArray,
+    tri_pts: FloatArray,
+    normals: FloatArray,
+    probes: FloatArray,
+    size: FloatArray,
+    settled: tuple[NDArray[np.bool_], NDArray[np.bool_]],
+    planes: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+    pair_a: NDArray[np.bool_],
+    lone: IntArray,
+) -> IntArray:
+    """Of the candidates ``retry`` (indices into ``cand``), those that are a straight
+    crease between curved sides; their planes in ``planes`` (na, pa, nb, pb: (C, 3)
+    each) are replaced, in place, by the sides' tangent planes at the crease."""
+    na, pa, nb, pb = planes
+    # each vertex's flat triangles, and its smooth ones (those of vertex v:
+    # table[starts[v]:starts[v + 1]])
+    tables = []
+    for mask in settled:
+        use = np.flatnonzero(mask)
+        corner_of = tris[use].ravel()
+        order = np.argsort(corner_of, kind="stable")
+        starts = np.searchsorted(corner_of[order], np.arange(tris.max() + 2))
+        tables.append((use[order // 3], starts))
+    found = []
+    for c in retry:
+        t = cand[c]
+        d = np.cross(na[c], nb[c])
+        d /= np.linalg.norm(d)
+        side_b = [lone[c]] if pair_a[c] else [k for k in range(3) if k != lone[c]]
+        origin = tri_pts[t].mean(axis=0)
+        tol = RULED_FIT * size[t]
+        patches = []
+        for n_s, n_o, ks in (
+            (na[c], nb[c], [k for k in range(3) if k not in side_b]),
+            (nb[c], na[c], side_b),
+        ):
+            near = []
+            for v in tris[t, ks]:  # a vertex's flat triangles where it has any
+                for table, starts in tables:
+                    if starts[v + 1] > starts[v]:
+                        near.append(table[starts[v] : starts[v + 1]])
+                        break
+            nbr = np.unique(np.concatenate(near)) if near else np.zeros(0, dtype=np.intp)
+            nbr = nbr[np.abs(normals[:, nbr].T @ n_s) > np.abs(normals[:, nbr].T @ n_o)]
+            cloud = np.concatenate(
+                [
+                    tri_pts[t, ks],
+                    tri_pts[nbr].reshape(-1, 3),
+                    probes[:, :, nbr].transpose(2, 1, 0).reshape(-1, 3),
+                ]
+            )
+            cloud = cloud[np.isfinite(cloud).all(axis=1)]
+            patches.append(side_patch(cloud, origin, n_s, tol))
+        ca, cb = patches
+        if ca is None or cb is None:
+            continue
+        met = crease_planes(ca, cb, origin, d, float(size[t]), tol)
+        probe = probes[:, :, t].T
+        probe = probe[np.isfinite(probe).all(axis=1)]
+        resid = np.minimum(np.abs(ca.height(probe)[0]), np.abs(cb.height(probe)[0]))
+        if met is None or resid.max() > tol:
+            continue
+        na[c], pa[c], nb[c], pb[c] = met
+        found.append(c)
+    return np.array(found, dtype=np.intp)
 
 
 def _vertex_normals(
