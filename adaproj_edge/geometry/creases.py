@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
-from adaproj_edge.geometry.ruled_crease import crease_planes, side_patch
+from adaproj_edge.geometry.ruled_crease import SidePatch, crease_planes, side_patch
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
 
@@ -44,6 +44,7 @@ FIT = 0.25  # the two planes must explain the surface this much better than the 
 CURVED_FIT = 0.2  # ... or, on a curved crease, this much better than its chord does
 SAME_SIDE_COS = float(np.cos(np.deg2rad(12.0)))  # two corners of one side: nearly one plane
 RULED_FIT = 1e-3  # a straight crease with curved sides: their patches explain them so
+RULED_CREASE_COS = float(np.cos(np.deg2rad(10.0)))  # ... where its planes are this far apart
 SOFTNESS = 4.0  # on a curved crease, the side is chosen softly over this many fit residuals
 
 
@@ -209,7 +210,11 @@ def unfold_measured(
     # a straight crease with a curved side (a wall meeting a cone along a ruling): its
     # corners' planes miss the crease; each side's curve across it finds the planes
     curved_crease = rough_c & (worst <= CURVED_FIT * chord)
-    retry = np.flatnonzero(np.any(seen, axis=1) & rough_c & ~straight & ~curved_crease)
+    # (a smooth curved patch's corners' planes differ by little more than a cell's bend:
+    # only a crease of RULED_CREASE or more is looked at so; the shift it mends grows
+    # with the crease's angle)
+    sharp = np.einsum("cj,cj->c", na, nb) < RULED_CREASE_COS
+    retry = np.flatnonzero(np.any(seen, axis=1) & rough_c & ~straight & ~curved_crease & sharp)
     if retry.size:
         excluded = np.zeros(tris.shape[0], dtype=bool)
         excluded[rough_t[differ]] = True
@@ -292,7 +297,7 @@ def _ruled_planes(
         side_b = [lone[c]] if pair_a[c] else [k for k in range(3) if k != lone[c]]
         origin = tri_pts[t].mean(axis=0)
         tol = RULED_FIT * size[t]
-        patches = []
+        patches: list[SidePatch] = []
         for n_s, n_o, ks in (
             (na[c], nb[c], [k for k in range(3) if k not in side_b]),
             (nb[c], na[c], side_b),
@@ -312,11 +317,13 @@ def _ruled_planes(
                     probes[:, :, nbr].transpose(2, 1, 0).reshape(-1, 3),
                 ]
             )
-            cloud = cloud[np.isfinite(cloud).all(axis=1)]
-            patches.append(side_patch(cloud, origin, n_s, tol))
-        ca, cb = patches
-        if ca is None or cb is None:
+            patch = side_patch(cloud[np.isfinite(cloud).all(axis=1)], origin, n_s, tol)
+            if patch is None:
+                break
+            patches.append(patch)
+        if len(patches) < 2:
             continue
+        ca, cb = patches
         met = crease_planes(ca, cb, origin, d, float(size[t]), tol)
         probe = probes[:, :, t].T
         probe = probe[np.isfinite(probe).all(axis=1)]

@@ -60,46 +60,116 @@ def side_patch(
     that reaches a hair across the crease lends it a point of the other side) is left
     out of a second one, up to :data:`OUTLIERS` of them. None with too few points, or
     if the side is not explained to within ``tol`` so."""
-    n = normal / np.linalg.norm(normal)
-    t = np.cross(np.array([0.0, 1.0, 0.0]) if abs(n[1]) < 0.9 else np.array([1.0, 0, 0]), n)
-    t /= np.linalg.norm(t)
-    frame = np.stack([t, np.cross(n, t), n])
+    if points.shape[0] < 3:
+        return None
+    n = normal / np.sqrt(normal @ normal)
+    # t: across n, from the x or y axis (whichever is farther from n)
+    t = np.array([n[2], 0.0, -n[0]]) if abs(n[1]) < 0.9 else np.array([0.0, -n[2], n[1]])
+    t /= np.sqrt(t @ t)
+    frame = np.stack(
+        [t, [n[1] * t[2] - n[2] * t[1], n[2] * t[0] - n[0] * t[2], n[0] * t[1] - n[1] * t[0]], n]
+    )
     q = (points - origin) @ frame.T
     u, w, y = q[:, 0], q[:, 1], q[:, 2]
-    lin = np.stack([np.ones_like(u), u, w], axis=1)
-    quad = np.concatenate([lin, np.stack([u * u, u * w, w * w], axis=1)], axis=1)
-    for basis, least in ((lin, 3), (quad, MIN_BENT_POINTS)):
+    quad = np.stack([np.ones_like(u), u, w, u * u, u * w, w * w], axis=1)
+    for cols, least in ((3, 3), (6, MIN_BENT_POINTS)):
+        basis = quad[:, :cols]
         use = np.ones(y.size, dtype=bool)
         for _ in range(2):
             if use.sum() < least:
                 break
-            coef, _, rank, _ = np.linalg.lstsq(basis[use], y[use], rcond=None)
+            coef = _least_squares(basis[use], y[use])
+            if coef is None:
+                break
             off = np.abs(basis @ coef - y)
-            if rank == basis.shape[1] and np.all(off[use] <= tol):
-                return SidePatch(origin, frame, np.concatenate([coef, np.zeros(6 - coef.size)]))
+            if np.all(off[use] <= tol):
+                return SidePatch(origin, frame, np.concatenate([coef, np.zeros(6 - cols)]))
             use = off <= tol
             if y.size - use.sum() > OUTLIERS * y.size:
                 break
     return None
 
 
+def _least_squares(a: FloatArray, y: FloatArray) -> FloatArray | None:
+    """The least-squares solution of ``a x = y`` by its normal equations (columns
+    scaled to unit size first), None where ``a`` has not full rank."""
+    scale = np.sqrt(np.einsum("ij,ij->j", a, a))
+    if not np.all(scale > 0):
+        return None
+    b = a / scale
+    g = b.T @ b
+    if np.linalg.det(g) < 1e-12:  # (1 for orthogonal columns)
+        return None
+    out: FloatArray = np.linalg.solve(g, b.T @ y) / scale
+    return out
+
+
+Vec = tuple[float, float, float]
+
+
+def _dot(a: Vec, b: Vec) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a: Vec, b: Vec) -> Vec:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+class _Plain:
+    """A :class:`SidePatch` in plain floats, evaluated at one point at a time (the few
+    Newton steps cost less so than as numpy calls)."""
+
+    def __init__(self, patch: SidePatch) -> None:
+        o, f, c = patch.origin, patch.frame, patch.coef
+        self.o: Vec = (float(o[0]), float(o[1]), float(o[2]))
+        self.t: Vec = (float(f[0, 0]), float(f[0, 1]), float(f[0, 2]))
+        self.s: Vec = (float(f[1, 0]), float(f[1, 1]), float(f[1, 2]))
+        self.n: Vec = (float(f[2, 0]), float(f[2, 1]), float(f[2, 2]))
+        self.c = [float(v) for v in c]
+
+    def height(self, x: Vec) -> tuple[float, Vec]:
+        q = (x[0] - self.o[0], x[1] - self.o[1], x[2] - self.o[2])
+        u, w, y = _dot(q, self.t), _dot(q, self.s), _dot(q, self.n)
+        c = self.c
+        f = y - (c[0] + c[1] * u + c[2] * w + c[3] * u * u + c[4] * u * w + c[5] * w * w)
+        du = -(c[1] + 2 * c[3] * u + c[4] * w)
+        dw = -(c[2] + c[4] * u + 2 * c[5] * w)
+        t, s, n = self.t, self.s, self.n
+        return f, tuple(du * t[k] + dw * s[k] + n[k] for k in range(3))  # type: ignore[return-value]
+
+
+def _meet(a: _Plain, b: _Plain, start: Vec, d: Vec) -> Vec | None:
+    x = start
+    for _ in range(NEWTON_STEPS):
+        fa, ga = a.height(x)
+        fb, gb = b.height(x)
+        # solve [ga; gb; d] dx = -(fa, fb, (x - start) . d) by Cramer's rule
+        r = (-fa, -fb, -_dot((x[0] - start[0], x[1] - start[1], x[2] - start[2]), d))
+        c_bd, c_da, c_ab = _cross(gb, d), _cross(d, ga), _cross(ga, gb)
+        det = _dot(ga, c_bd)
+        if abs(det) < 1e-12:
+            return None
+        dx = tuple((r[0] * c_bd[k] + r[1] * c_da[k] + r[2] * c_ab[k]) / det for k in range(3))
+        x = (x[0] + dx[0], x[1] + dx[1], x[2] + dx[2])
+        if abs(fa) + abs(fb) < 1e-13 and max(abs(v) for v in dx) < 1e-13:
+            break
+    fa, _ = a.height(x)
+    fb, _ = b.height(x)
+    if not all(np.isfinite(x)) or max(abs(fa), abs(fb)) > 1e-9:
+        return None
+    return x
+
+
 def meet(a: SidePatch, b: SidePatch, start: FloatArray, d: FloatArray) -> FloatArray | None:
     """The point (3,) where patches ``a`` and ``b`` meet in the plane through ``start``
     across the direction ``d`` (unit), from ``start`` by Newton's method; None if it
     does not converge."""
-    x = start.astype(np.float64).copy()
-    for _ in range(NEWTON_STEPS):
-        fa, ga = a.height(x[None])
-        fb, gb = b.height(x[None])
-        jac = np.stack([ga[0], gb[0], d])
-        if abs(np.linalg.det(jac)) < 1e-12:
-            return None
-        x = x - np.linalg.solve(jac, np.array([fa[0], fb[0], (x - start) @ d]))
-    fa, _ = a.height(x[None])
-    fb, _ = b.height(x[None])
-    if not np.all(np.isfinite(x)) or max(abs(fa[0]), abs(fb[0])) > 1e-9:
-        return None
-    return x
+    x = _meet(_Plain(a), _Plain(b), _vec(start), _vec(d))
+    return None if x is None else np.array(x)
+
+
+def _vec(v: FloatArray) -> Vec:
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def crease_planes(
@@ -110,19 +180,27 @@ def crease_planes(
     normals facing as the patches' planes do; None if they do not meet within
     :data:`REACH` sizes, or along a line: the crease at half a size either side must
     lie within ``straight`` of the line the planes meet along."""
-    o = meet(a, b, centre, d)
-    if o is None or float(np.linalg.norm(o - centre)) > REACH * size:
+    pa_, pb_ = _Plain(a), _Plain(b)
+    o = _meet(pa_, pb_, _vec(centre), _vec(d))
+    if o is None:
         return None
-    _, ga = a.height(o[None])
-    _, gb = b.height(o[None])
-    na, nb = ga[0] / np.linalg.norm(ga[0]), gb[0] / np.linalg.norm(gb[0])
+    if float(np.linalg.norm(np.array(o) - centre)) > REACH * size:
+        return None
+    ga, gb = pa_.height(o)[1], pb_.height(o)[1]
+    na = np.array(ga) / np.sqrt(_dot(ga, ga))
+    nb = np.array(gb) / np.sqrt(_dot(gb, gb))
     line = np.cross(na, nb)
     line /= np.linalg.norm(line)
+    ln = _vec(line)
     for side in (-0.5, 0.5):
-        p = meet(a, b, o + side * size * line, line)
+        start = (o[0] + side * size * ln[0], o[1] + side * size * ln[1], o[2] + side * size * ln[2])
+        p = _meet(pa_, pb_, start, ln)
         if p is None:
             return None
-        off = (p - o) - ((p - o) @ line) * line
-        if float(np.linalg.norm(off)) > straight:
+        q = (p[0] - o[0], p[1] - o[1], p[2] - o[2])
+        along = _dot(q, ln)
+        off = (q[0] - along * ln[0], q[1] - along * ln[1], q[2] - along * ln[2])
+        if np.sqrt(_dot(off, off)) > straight:
             return None
-    return na, o, nb, o.copy()
+    at = np.array(o)
+    return na, at, nb, at.copy()

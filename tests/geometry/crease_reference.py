@@ -18,6 +18,7 @@ from adaproj_edge.geometry.creases import (
     CURVED_FIT,
     FIT,
     ROUGH,
+    RULED_CREASE_COS,
     RULED_FIT,
     SAME_SIDE_COS,
     SLIGHT,
@@ -91,7 +92,7 @@ def decide(
     rough = chord > ROUGH * size  # else only a sliver: it must be straight
     straight = FIT * (ROUGH if rough else SLIGHT) * size
     if worst > straight and (not rough or worst > CURVED_FIT * chord):
-        if not rough or cloud is None:
+        if not rough or cloud is None or float(na @ nb) >= RULED_CREASE_COS:
             return None
         # a straight crease with a curved side: the sides' patches meet along it
         d = np.cross(na, nb)
