@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
-from adaproj_edge.geometry.ruled_crease import SidePatch, crease_planes, side_patch
+from adaproj_edge.geometry.ruled_crease import ruled_planes
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
 
@@ -218,7 +218,7 @@ def unfold_measured(
     if retry.size:
         excluded = np.zeros(tris.shape[0], dtype=bool)
         excluded[rough_t[differ]] = True
-        curved = _ruled_planes(
+        curved = ruled_planes(
             retry,
             cand,
             tris,
@@ -230,6 +230,7 @@ def unfold_measured(
             (na, pa, nb, pb),
             pair_a,
             lone,
+            RULED_FIT,
         )
         straight[curved] = True
     keep = np.any(seen, axis=1) & (straight | curved_crease)
@@ -261,78 +262,6 @@ def unfold_measured(
         if not straight[c]:  # a curved crease: soften the side choice
             unfolding.softness[t] = SOFTNESS * worst[c]
     return unfolding
-
-
-def _ruled_planes(
-    retry: IntArray,
-    cand: IntArray,
-    tris: IntArray,
-    tri_pts: FloatArray,
-    normals: FloatArray,
-    probes: FloatArray,
-    size: FloatArray,
-    settled: tuple[NDArray[np.bool_], NDArray[np.bool_]],
-    planes: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
-    pair_a: NDArray[np.bool_],
-    lone: IntArray,
-) -> IntArray:
-    """Of the candidates ``retry`` (indices into ``cand``), those that are a straight
-    crease between curved sides; their planes in ``planes`` (na, pa, nb, pb: (C, 3)
-    each) are replaced, in place, by the sides' tangent planes at the crease."""
-    na, pa, nb, pb = planes
-    # each vertex's flat triangles, and its smooth ones (those of vertex v:
-    # table[starts[v]:starts[v + 1]])
-    tables = []
-    for mask in settled:
-        use = np.flatnonzero(mask)
-        corner_of = tris[use].ravel()
-        order = np.argsort(corner_of, kind="stable")
-        starts = np.searchsorted(corner_of[order], np.arange(tris.max() + 2))
-        tables.append((use[order // 3], starts))
-    found = []
-    for c in retry:
-        t = cand[c]
-        d = np.cross(na[c], nb[c])
-        d /= np.linalg.norm(d)
-        side_b = [lone[c]] if pair_a[c] else [k for k in range(3) if k != lone[c]]
-        origin = tri_pts[t].mean(axis=0)
-        tol = RULED_FIT * size[t]
-        patches: list[SidePatch] = []
-        for n_s, n_o, ks in (
-            (na[c], nb[c], [k for k in range(3) if k not in side_b]),
-            (nb[c], na[c], side_b),
-        ):
-            near = []
-            for v in tris[t, ks]:  # a vertex's flat triangles where it has any
-                for table, starts in tables:
-                    if starts[v + 1] > starts[v]:
-                        near.append(table[starts[v] : starts[v + 1]])
-                        break
-            nbr = np.unique(np.concatenate(near)) if near else np.zeros(0, dtype=np.intp)
-            nbr = nbr[np.abs(normals[:, nbr].T @ n_s) > np.abs(normals[:, nbr].T @ n_o)]
-            cloud = np.concatenate(
-                [
-                    tri_pts[t, ks],
-                    tri_pts[nbr].reshape(-1, 3),
-                    probes[:, :, nbr].transpose(2, 1, 0).reshape(-1, 3),
-                ]
-            )
-            patch = side_patch(cloud[np.isfinite(cloud).all(axis=1)], origin, n_s, tol)
-            if patch is None:
-                break
-            patches.append(patch)
-        if len(patches) < 2:
-            continue
-        ca, cb = patches
-        met = crease_planes(ca, cb, origin, d, float(size[t]), tol)
-        probe = probes[:, :, t].T
-        probe = probe[np.isfinite(probe).all(axis=1)]
-        resid = np.minimum(np.abs(ca.height(probe)[0]), np.abs(cb.height(probe)[0]))
-        if met is None or resid.max() > tol:
-            continue
-        na[c], pa[c], nb[c], pb[c] = met
-        found.append(c)
-    return np.array(found, dtype=np.intp)
 
 
 def _vertex_normals(
