@@ -15,6 +15,14 @@ is rough, triangles farther than ``SLIGHT`` from their plane are looked at too (
 straight creases only: their two planes must explain them as a flat triangle's plane
 does), and a vertex takes its plane from its flat triangles where it has any, so a
 sliver's tilt does not spoil its neighbours' unfolding.
+
+A straight crease may have a curved side (a wall meeting a cone along a ruling): its
+rough triangles are then explained neither by their corners' planes (the cone bends
+away from them) nor as a curved crease (their chord is too good). For those, each
+side is fitted with a quadratic patch from its smooth triangles next to the crease
+(:mod:`adaproj_edge.geometry.ruled_crease`); where the patches meet along a straight
+line and explain the triangle to ``RULED_FIT`` of its size, it is unfolded about that
+line with the patches' tangent planes there.
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
+from adaproj_edge.geometry.ruled_crease import ruled_planes
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
 
@@ -34,6 +43,8 @@ CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this ma
 FIT = 0.25  # the two planes must explain the surface this much better than the triangle
 CURVED_FIT = 0.2  # ... or, on a curved crease, this much better than its chord does
 SAME_SIDE_COS = float(np.cos(np.deg2rad(12.0)))  # two corners of one side: nearly one plane
+RULED_FIT = 1e-3  # a straight crease with curved sides: their patches explain them so
+RULED_CREASE_COS = float(np.cos(np.deg2rad(10.0)))  # ... where its planes are this far apart
 SOFTNESS = 4.0  # on a curved crease, the side is chosen softly over this many fit residuals
 
 
@@ -148,9 +159,9 @@ def unfold_measured(
         return _nothing_folded(tri_pts)
     # the plane of each vertex: area-weighted normal of its flat triangles, or where it
     # has none (a curved wall) of its smooth ones
-    seen = np.isfinite(normals).all(axis=0)
-    acc = _vertex_normals(tris, normals, size, ~slight & seen, points.shape[0])
-    loose = _vertex_normals(tris, normals, size, ~rough & slight & seen, points.shape[0])
+    seen_t = np.isfinite(normals).all(axis=0)
+    acc = _vertex_normals(tris, normals, size, ~slight & seen_t, points.shape[0])
+    loose = _vertex_normals(tris, normals, size, ~rough & slight & seen_t, points.shape[0])
     acc = np.where(np.any(acc != 0.0, axis=0), acc, loose)
     with np.errstate(invalid="ignore", divide="ignore"):
         vn = acc / np.sqrt(dot_first(acc, acc))  # (3, N)
@@ -196,7 +207,33 @@ def unfold_measured(
     # explain it as well as a flat one's plane does, and it is never a curved crease)
     rough_c = rough[cand]
     straight = worst <= FIT * np.where(rough_c, ROUGH, SLIGHT) * size[cand]
-    keep = np.any(seen, axis=1) & (straight | (rough_c & (worst <= CURVED_FIT * chord)))
+    # a straight crease with a curved side (a wall meeting a cone along a ruling): its
+    # corners' planes miss the crease; each side's curve across it finds the planes
+    curved_crease = rough_c & (worst <= CURVED_FIT * chord)
+    # (a smooth curved patch's corners' planes differ by little more than a cell's bend:
+    # only a crease of RULED_CREASE or more is looked at so; the shift it mends grows
+    # with the crease's angle)
+    sharp = np.einsum("cj,cj->c", na, nb) < RULED_CREASE_COS
+    retry = np.flatnonzero(np.any(seen, axis=1) & rough_c & ~straight & ~curved_crease & sharp)
+    if retry.size:
+        excluded = np.zeros(tris.shape[0], dtype=bool)
+        excluded[rough_t[differ]] = True
+        curved = ruled_planes(
+            retry,
+            cand,
+            tris,
+            tri_pts,
+            normals,
+            probes,
+            size,
+            (seen_t & ~slight, seen_t & ~rough & slight & ~excluded),
+            (na, pa, nb, pb),
+            pair_a,
+            lone,
+            RULED_FIT,
+        )
+        straight[curved] = True
+    keep = np.any(seen, axis=1) & (straight | curved_crease)
     if not np.any(keep):
         return _nothing_folded(tri_pts)
     t_count = tris.shape[0]

@@ -8,6 +8,8 @@ unfolded and with which planes, rotation and softness.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from adaproj_edge.arrays import FloatArray
@@ -16,10 +18,17 @@ from adaproj_edge.geometry.creases import (
     CURVED_FIT,
     FIT,
     ROUGH,
+    RULED_CREASE_COS,
+    RULED_FIT,
     SAME_SIDE_COS,
     SLIGHT,
     SOFTNESS,
 )
+from adaproj_edge.geometry.ruled_crease import crease_planes, side_patch
+
+# a side's surface points near a crease triangle: (side's corners (k,), its planes'
+# normal, the other side's) -> (K, 3)
+Cloud = Callable[[list[int], FloatArray, FloatArray], FloatArray]
 
 
 def crease_groups(normals: FloatArray) -> tuple[list[int], list[int]] | None:
@@ -60,11 +69,13 @@ def decide(
     probes: FloatArray,
     chord_dist: FloatArray,
     size: float,
+    cloud: Cloud | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]] | None:
     """Triangle ``t``'s crease, from its corners' planes' normals (3, 3), its corners (3, 3),
     its probes' surface points (4, 3) and their distances to its chord plane (4,): the
     planes a (na, pa) and b (nb, pb), the softness and the corners of side b; None when
-    it is not unfolded."""
+    it is not unfolded. ``cloud`` gives a side's surface points near the triangle (for
+    a straight crease with a curved side)."""
     groups = crease_groups(corner_normals)
     if groups is None:
         return None
@@ -81,7 +92,23 @@ def decide(
     rough = chord > ROUGH * size  # else only a sliver: it must be straight
     straight = FIT * (ROUGH if rough else SLIGHT) * size
     if worst > straight and (not rough or worst > CURVED_FIT * chord):
-        return None
+        if not rough or cloud is None or float(na @ nb) >= RULED_CREASE_COS:
+            return None
+        # a straight crease with a curved side: the sides' patches meet along it
+        d = np.cross(na, nb)
+        d /= np.linalg.norm(d)
+        origin = corner_points.mean(axis=0)
+        tol = RULED_FIT * size
+        patch_a = side_patch(cloud(group_a, na, nb), origin, na, tol)
+        patch_b = side_patch(cloud(group_b, nb, na), origin, nb, tol)
+        if patch_a is None or patch_b is None:
+            return None
+        met = crease_planes(patch_a, patch_b, origin, d, size, tol)
+        off = np.minimum(np.abs(patch_a.height(probe)[0]), np.abs(patch_b.height(probe)[0]))
+        if met is None or float(off.max()) > tol:
+            return None
+        na, pa, nb, pb = met
+        return na, pa, nb, pb, 0.0, group_b
     softness = SOFTNESS * worst if worst > straight else 0.0
     return na, pa, nb, pb, softness, group_b
 
@@ -124,11 +151,44 @@ def unfold_reference(
     out = {}
     if not rough:
         return out
+    # the triangles whose corners' planes differ: never a side's smooth neighbours
+    differ = set()
+    for t in slight:
+        cn = vertex_n[tris[t]]
+        if any(float(cn[i] @ cn[0]) < CREASE_COS for i in (1, 2)):
+            differ.add(t)
+    flat_of: dict[int, list[int]] = {}
+    smooth_of: dict[int, list[int]] = {}
+    for t, corners in enumerate(tris):
+        if t in rough or not np.all(np.isfinite(normals[t])):
+            continue
+        if t not in slight:
+            for v in corners:
+                flat_of.setdefault(int(v), []).append(t)
+        elif t not in differ:
+            for v in corners:
+                smooth_of.setdefault(int(v), []).append(t)
+
+    def cloud_of(t: int) -> Cloud:
+        def cloud(ks: list[int], n_side: FloatArray, n_other: FloatArray) -> FloatArray:
+            near: set[int] = set()
+            for k in ks:
+                v = int(tris[t][k])
+                near.update(flat_of.get(v) or smooth_of.get(v) or [])
+            pts = [points[tris[t][k]] for k in ks]
+            for u in sorted(near):
+                if abs(float(normals[u] @ n_side)) > abs(float(normals[u] @ n_other)):
+                    pts += [points[v] for v in tris[u]] + list(probes[u])
+            out = np.array(pts, dtype=np.float64)
+            return out[np.all(np.isfinite(out), axis=1)]
+
+        return cloud
+
     for t in sorted(slight):
         corner_n = vertex_n[tris[t]]
         if not np.all(np.isfinite(corner_n)):
             continue
-        found = decide(t, corner_n, points[tris[t]], probes[t], dists[t], sizes[t])
+        found = decide(t, corner_n, points[tris[t]], probes[t], dists[t], sizes[t], cloud_of(t))
         if found is not None:
             out[t] = found
     return out

@@ -128,3 +128,29 @@ def test_a_two_corner_side_gets_the_plane_of_the_rules(seed: int, spread: float)
         want_n, want_p = side_plane(normals[c, :2], points[c, :2], normals[c, 2])
         np.testing.assert_allclose(n[c], want_n, atol=1e-12)
         np.testing.assert_allclose(p[c], want_p, atol=1e-12)
+
+
+def test_a_straight_crease_with_a_curved_side_agrees_triangle_by_triangle() -> None:
+    """A wall meeting a sharp cone, rolled 18 deg (seed 1 case 101 of
+    ``tools/stress_warp.py``), on its 15 x 18 grid: most triangles the crease clips are
+    explained only by the sides' patches (the ruled rule: 39 unfolded, 25 without it),
+    and both readings agree."""
+    from tests.warp.random_surfaces import draw_case
+
+    case = draw_case(1, 101)
+    surface = simulate_surface(case.surface)
+    uv = case.grid.vertices(surface.projector).reshape(-1, 2)
+    tris = grid_triangles(case.grid.rows, case.grid.cols)
+    tri_uv = uv[tris]
+    points = surface.points_at(uv).astype(np.float64)
+    probes = surface.points_at(crease_probes(tri_uv)).astype(np.float64)
+    got = unfold_creases(surface, tri_uv, tris, points, probes)
+    want = unfold_reference(tris, points, probes)
+    assert set(np.flatnonzero(got.folded)) == set(want)
+    assert len(want) >= 35  # 25 before the ruled rule, of the 42 the crease crosses
+    for t, (na, pa, nb, pb, softness, _) in want.items():
+        np.testing.assert_allclose(got.normal_a[t], na, atol=1e-9)
+        np.testing.assert_allclose(got.point_a[t], pa, atol=1e-9)
+        np.testing.assert_allclose(got.normal_b[t], nb, atol=1e-9)
+        np.testing.assert_allclose(got.point_b[t], pb, atol=1e-9)
+        assert got.softness[t] == pytest.approx(softness, abs=1e-12)

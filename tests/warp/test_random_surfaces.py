@@ -91,3 +91,15 @@ def test_random_surfaces_meet_the_lines(index: int) -> None:
     out = run_case(case)
     assert not out.failures, (case.describe(), out.failures)
     assert np.isfinite(out.figures.get("angle", 0.0))
+
+
+@pytest.mark.parametrize("index", [107, 144, 183])
+def test_a_wall_meeting_a_curved_cone_is_exact(index: int) -> None:
+    """Seed 1: a plane wall meeting a cone along a ruling, rolled (cases 107, 144, 183;
+    size std 3.5e-4, 8.8e-4, 3.8e-4 before): the triangles the crease clips were
+    explained neither by their corners' planes (the cone bends away) nor as a curved
+    crease, and were not unfolded; now the sides' patches find the crease
+    (``geometry/ruled_crease.py``)."""
+    case = draw_case(1, index)
+    out = run_case(case)
+    assert not out.failures, (case.describe(), out.failures)

@@ -1,0 +1,286 @@
+"""A straight crease whose sides are curved developable surfaces: its exact planes.
+
+A plane wall meeting a cone (or a cylinder) along one of its rulings has a straight
+crease, but the cone side bends away from any plane: the planes of its corners are
+tangent to it a cell away from the crease, and the line where such a plane meets the
+wall is not the crease. Rotated about that line, the cone side lands shifted by about
+``kappa s^2 / 2 tan(angle / 2)`` (s: the corner's distance from the crease) - a few
+tenths of a percent of a cell, enough to spoil an exact display.
+
+So each side is fitted, from the surface points of its smooth triangles next to the
+crease, with a quadratic height over its plane (:class:`SidePatch`; a plane where its
+points lie on one). The two patches meet along the crease; where it is straight across
+the triangle (the sides meet along a line, not a curve as a cylinder standing on a floor
+does), the patches' tangent planes at the crease are the planes its triangles unfold
+with - exact to second order, as a chord triangle is - and the rotation is about the
+crease itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.arrays import FloatArray, IntArray
+
+NEWTON_STEPS = 8
+REACH = 2.0  # the crease must lie within this many triangle sizes of the triangle
+MIN_BENT_POINTS = 9  # a bent side is fitted from at least this many points
+OUTLIERS = 0.2  # ... of which at most this share may be left out
+
+
+@dataclass(frozen=True)
+class SidePatch:
+    """One side near the crease: the points ``origin + u t + w s + h(u, w) n`` with
+    ``h = c0 + c1 u + c2 w + c3 u^2 + c4 u w + c5 w^2``."""
+
+    origin: FloatArray
+    frame: FloatArray  # (3, 3) rows t, s, n
+    coef: FloatArray  # (6,)
+
+    def height(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``n . (X - origin) - h(u, w)`` of points (K, 3) (K,), and its gradient (K, 3)."""
+        q = (points - self.origin) @ self.frame.T  # (K, 3): u, w, y
+        u, w, y = q[:, 0], q[:, 1], q[:, 2]
+        c = self.coef
+        f = y - (c[0] + c[1] * u + c[2] * w + c[3] * u * u + c[4] * u * w + c[5] * w * w)
+        du = -(c[1] + 2 * c[3] * u + c[4] * w)
+        dw = -(c[2] + c[4] * u + 2 * c[5] * w)
+        grad = du[:, None] * self.frame[0] + dw[:, None] * self.frame[1] + self.frame[2]
+        return f, grad
+
+
+def side_patch(
+    points: FloatArray, origin: FloatArray, normal: FloatArray, tol: float
+) -> SidePatch | None:
+    """The :class:`SidePatch` of a side's surface ``points`` (K, 3) in the frame of its
+    plane's ``normal`` at ``origin``: a plane where one explains them to within ``tol``,
+    else the quadratic. A point farther than ``tol`` from the first fit (a triangle
+    that reaches a hair across the crease lends it a point of the other side) is left
+    out of a second one, up to :data:`OUTLIERS` of them. None with too few points, or
+    if the side is not explained to within ``tol`` so."""
+    if points.shape[0] < 3:
+        return None
+    n = normal / np.sqrt(normal @ normal)
+    # t: across n, from the x or y axis (whichever is farther from n)
+    t = np.array([n[2], 0.0, -n[0]]) if abs(n[1]) < 0.9 else np.array([0.0, -n[2], n[1]])
+    t /= np.sqrt(t @ t)
+    frame = np.stack(
+        [t, [n[1] * t[2] - n[2] * t[1], n[2] * t[0] - n[0] * t[2], n[0] * t[1] - n[1] * t[0]], n]
+    )
+    q = (points - origin) @ frame.T
+    u, w, y = q[:, 0], q[:, 1], q[:, 2]
+    quad = np.stack([np.ones_like(u), u, w, u * u, u * w, w * w], axis=1)
+    for cols, least in ((3, 3), (6, MIN_BENT_POINTS)):
+        basis = quad[:, :cols]
+        use = np.ones(y.size, dtype=bool)
+        for _ in range(2):
+            if use.sum() < least:
+                break
+            coef = _least_squares(basis[use], y[use])
+            if coef is None:
+                break
+            off = np.abs(basis @ coef - y)
+            if np.all(off[use] <= tol):
+                return SidePatch(origin, frame, np.concatenate([coef, np.zeros(6 - cols)]))
+            use = off <= tol
+            if y.size - use.sum() > OUTLIERS * y.size:
+                break
+    return None
+
+
+def _least_squares(a: FloatArray, y: FloatArray) -> FloatArray | None:
+    """The least-squares solution of ``a x = y`` by its normal equations (columns
+    scaled to unit size first), None where ``a`` has not full rank."""
+    scale = np.sqrt(np.einsum("ij,ij->j", a, a))
+    if not np.all(scale > 0):
+        return None
+    b = a / scale
+    g = b.T @ b
+    if np.linalg.det(g) < 1e-12:  # (1 for orthogonal columns)
+        return None
+    out: FloatArray = np.linalg.solve(g, b.T @ y) / scale
+    return out
+
+
+Vec = tuple[float, float, float]
+
+
+def _dot(a: Vec, b: Vec) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a: Vec, b: Vec) -> Vec:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+class _Plain:
+    """A :class:`SidePatch` in plain floats, evaluated at one point at a time (the few
+    Newton steps cost less so than as numpy calls)."""
+
+    def __init__(self, patch: SidePatch) -> None:
+        o, f, c = patch.origin, patch.frame, patch.coef
+        self.o: Vec = (float(o[0]), float(o[1]), float(o[2]))
+        self.t: Vec = (float(f[0, 0]), float(f[0, 1]), float(f[0, 2]))
+        self.s: Vec = (float(f[1, 0]), float(f[1, 1]), float(f[1, 2]))
+        self.n: Vec = (float(f[2, 0]), float(f[2, 1]), float(f[2, 2]))
+        self.c = [float(v) for v in c]
+
+    def height(self, x: Vec) -> tuple[float, Vec]:
+        q = (x[0] - self.o[0], x[1] - self.o[1], x[2] - self.o[2])
+        u, w, y = _dot(q, self.t), _dot(q, self.s), _dot(q, self.n)
+        c = self.c
+        f = y - (c[0] + c[1] * u + c[2] * w + c[3] * u * u + c[4] * u * w + c[5] * w * w)
+        du = -(c[1] + 2 * c[3] * u + c[4] * w)
+        dw = -(c[2] + c[4] * u + 2 * c[5] * w)
+        t, s, n = self.t, self.s, self.n
+        return f, tuple(du * t[k] + dw * s[k] + n[k] for k in range(3))  # type: ignore[return-value]
+
+
+def _meet(a: _Plain, b: _Plain, start: Vec, d: Vec) -> Vec | None:
+    x = start
+    for _ in range(NEWTON_STEPS):
+        fa, ga = a.height(x)
+        fb, gb = b.height(x)
+        # solve [ga; gb; d] dx = -(fa, fb, (x - start) . d) by Cramer's rule
+        r = (-fa, -fb, -_dot((x[0] - start[0], x[1] - start[1], x[2] - start[2]), d))
+        c_bd, c_da, c_ab = _cross(gb, d), _cross(d, ga), _cross(ga, gb)
+        det = _dot(ga, c_bd)
+        if abs(det) < 1e-12:
+            return None
+        dx = tuple((r[0] * c_bd[k] + r[1] * c_da[k] + r[2] * c_ab[k]) / det for k in range(3))
+        x = (x[0] + dx[0], x[1] + dx[1], x[2] + dx[2])
+        if abs(fa) + abs(fb) < 1e-13 and max(abs(v) for v in dx) < 1e-13:
+            break
+    fa, _ = a.height(x)
+    fb, _ = b.height(x)
+    if not all(np.isfinite(x)) or max(abs(fa), abs(fb)) > 1e-9:
+        return None
+    return x
+
+
+def meet(a: SidePatch, b: SidePatch, start: FloatArray, d: FloatArray) -> FloatArray | None:
+    """The point (3,) where patches ``a`` and ``b`` meet in the plane through ``start``
+    across the direction ``d`` (unit), from ``start`` by Newton's method; None if it
+    does not converge."""
+    x = _meet(_Plain(a), _Plain(b), _vec(start), _vec(d))
+    return None if x is None else np.array(x)
+
+
+def _vec(v: FloatArray) -> Vec:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def crease_planes(
+    a: SidePatch, b: SidePatch, centre: FloatArray, d: FloatArray, size: float, straight: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None:
+    """The planes (na, pa, nb, pb) tangent to patches ``a`` and ``b`` where they meet
+    across the triangle at ``centre`` (size ``size``, crease roughly along ``d``),
+    normals facing as the patches' planes do; None if they do not meet within
+    :data:`REACH` sizes, or along a line: the crease at half a size either side must
+    lie within ``straight`` of the line the planes meet along."""
+    pa_, pb_ = _Plain(a), _Plain(b)
+    o = _meet(pa_, pb_, _vec(centre), _vec(d))
+    if o is None:
+        return None
+    if float(np.linalg.norm(np.array(o) - centre)) > REACH * size:
+        return None
+    ga, gb = pa_.height(o)[1], pb_.height(o)[1]
+    na = np.array(ga) / np.sqrt(_dot(ga, ga))
+    nb = np.array(gb) / np.sqrt(_dot(gb, gb))
+    line = np.cross(na, nb)
+    line /= np.linalg.norm(line)
+    ln = _vec(line)
+    for side in (-0.5, 0.5):
+        start = (o[0] + side * size * ln[0], o[1] + side * size * ln[1], o[2] + side * size * ln[2])
+        p = _meet(pa_, pb_, start, ln)
+        if p is None:
+            return None
+        q = (p[0] - o[0], p[1] - o[1], p[2] - o[2])
+        along = _dot(q, ln)
+        off = (q[0] - along * ln[0], q[1] - along * ln[1], q[2] - along * ln[2])
+        if np.sqrt(_dot(off, off)) > straight:
+            return None
+    at = np.array(o)
+    return na, at, nb, at.copy()
+
+
+def ruled_planes(
+    retry: IntArray,
+    cand: IntArray,
+    tris: IntArray,
+    tri_pts: FloatArray,
+    normals: FloatArray,
+    probes: FloatArray,
+    size: FloatArray,
+    settled: tuple[NDArray[np.bool_], NDArray[np.bool_]],
+    planes: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+    pair_a: NDArray[np.bool_],
+    lone: IntArray,
+    fit: float,
+) -> IntArray:
+    """Of the crease candidates ``retry`` (indices into ``cand``, the triangles of
+    ``tris``; ``lone`` / ``pair_a`` their corner groups, as in
+    :mod:`~adaproj_edge.geometry.creases`), those that are a straight crease between
+    curved sides, explained to ``fit`` of their ``size``; their planes in ``planes``
+    (na, pa, nb, pb: (C, 3) each) are replaced, in place, by the sides' tangent planes
+    at the crease. ``settled``: the flat triangles and the smooth ones (no crease
+    candidates), whose corners and ``probes`` (3, 4, T) give a side its points (a
+    vertex's flat triangles where it has any)."""
+    na, pa, nb, pb = planes
+    # each vertex's flat triangles, and its smooth ones (those of vertex v:
+    # table[starts[v]:starts[v + 1]])
+    tables = []
+    for mask in settled:
+        use = np.flatnonzero(mask)
+        corner_of = tris[use].ravel()
+        order = np.argsort(corner_of, kind="stable")
+        starts = np.searchsorted(corner_of[order], np.arange(tris.max() + 2))
+        tables.append((use[order // 3], starts))
+    found = []
+    for c in retry:
+        t = cand[c]
+        d = np.cross(na[c], nb[c])
+        d /= np.linalg.norm(d)
+        side_b = [lone[c]] if pair_a[c] else [k for k in range(3) if k != lone[c]]
+        origin = tri_pts[t].mean(axis=0)
+        tol = fit * size[t]
+        patches: list[SidePatch] = []
+        for n_s, n_o, ks in (
+            (na[c], nb[c], [k for k in range(3) if k not in side_b]),
+            (nb[c], na[c], side_b),
+        ):
+            near = []
+            for v in tris[t, ks]:  # a vertex's flat triangles where it has any
+                for table, starts in tables:
+                    if starts[v + 1] > starts[v]:
+                        near.append(table[starts[v] : starts[v + 1]])
+                        break
+            nbr = np.unique(np.concatenate(near)) if near else np.zeros(0, dtype=np.intp)
+            nbr = nbr[np.abs(normals[:, nbr].T @ n_s) > np.abs(normals[:, nbr].T @ n_o)]
+            cloud = np.concatenate(
+                [
+                    tri_pts[t, ks],
+                    tri_pts[nbr].reshape(-1, 3),
+                    probes[:, :, nbr].transpose(2, 1, 0).reshape(-1, 3),
+                ]
+            )
+            patch = side_patch(cloud[np.isfinite(cloud).all(axis=1)], origin, n_s, tol)
+            if patch is None:
+                break
+            patches.append(patch)
+        if len(patches) < 2:
+            continue
+        ca, cb = patches
+        met = crease_planes(ca, cb, origin, d, float(size[t]), tol)
+        probe = probes[:, :, t].T
+        probe = probe[np.isfinite(probe).all(axis=1)]
+        resid = np.minimum(np.abs(ca.height(probe)[0]), np.abs(cb.height(probe)[0]))
+        # (a triangle with no probe on the surface is not explained)
+        if met is None or resid.size == 0 or resid.max() > tol:
+            continue
+        na[c], pa[c], nb[c], pb[c] = met
+        found.append(c)
+    return np.array(found, dtype=np.intp)

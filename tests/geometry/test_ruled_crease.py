@@ -1,0 +1,75 @@
+"""The crease of two fitted side patches against geometry known in closed form.
+
+A plane wall meeting a circular cylinder along one of its rulings (the cylinder leaving
+the wall at a known angle): the patches must meet on the ruling, with the wall's plane
+and the cylinder's tangent plane there. A cylinder standing on a floor meets it along a
+circle: not a straight crease, so no planes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.geometry.ruled_crease import crease_planes, side_patch
+
+H = 0.05  # a triangle's size (m)
+TOL = 1e-3 * H
+
+
+def wall_and_cylinder(turn: float, radius: float) -> tuple[FloatArray, FloatArray]:
+    """Points of the wall z = 0 (x <= 0) and of a cylinder (axis along y) leaving it at
+    the ruling x = z = 0 at the angle ``turn`` and bending away, a few cells around."""
+    ys = np.linspace(-1.5 * H, 1.5 * H, 7)
+    xs = np.linspace(-2 * H, -0.1 * H, 6)
+    wall = np.array([(x, y, 0.0) for x in xs for y in ys])
+    centre = radius * np.array([-np.sin(turn), np.cos(turn)])
+    arcs = np.linspace(0.1 * H, 2 * H, 6)
+    cyl = []
+    for s in arcs:
+        a = turn + s / radius
+        x, z = centre + radius * np.array([np.sin(a), -np.cos(a)])
+        cyl += [(x, y, z) for y in ys]
+    return wall, np.array(cyl)
+
+
+@pytest.mark.parametrize("turn", [0.2, 0.5, 0.7])
+@pytest.mark.parametrize("radius", [5 * H, 20 * H])
+def test_the_patches_meet_on_the_ruling_with_its_tangent_planes(turn: float, radius: float) -> None:
+    wall, cyl = wall_and_cylinder(turn, radius)
+    centre = np.array([0.3 * H, 0.1 * H, 0.05 * H])
+    a = side_patch(wall, centre, np.array([0.02, 0.0, 1.0]), TOL)
+    b = side_patch(cyl, centre, np.array([-np.sin(turn + 0.1), 0.0, np.cos(turn + 0.1)]), TOL)
+    assert a is not None and b is not None
+    d = np.array([0.05, 1.0, 0.0]) / np.hypot(0.05, 1.0)  # the crease's direction, roughly
+    met = crease_planes(a, b, centre, d, H, TOL)
+    assert met is not None
+    na, pa, nb, pb = met
+    np.testing.assert_array_equal(pa, pb)  # both through the crease
+    # on the ruling x = z = 0, to a small part of the sagitta of a cell (H^2 / 2 r)
+    assert abs(pa[0]) < 0.02 * H * H / radius + 1e-9
+    assert abs(pa[2]) < 0.02 * H * H / radius + 1e-9
+    np.testing.assert_allclose(na, [0.0, 0.0, 1.0], atol=1e-9)
+    # the cylinder's tangent plane there, to 5 % of a cell's bend (H / r): turning the
+    # cylinder's side by that off its true angle moves its corners by its square only
+    tangent = np.array([-np.sin(turn), 0.0, np.cos(turn)])
+    assert np.arccos(min(1.0, float(nb @ tangent))) < 0.05 * H / radius
+
+
+def test_a_cylinder_standing_on_a_floor_is_no_straight_crease() -> None:
+    """The floor z = 0 and a cylinder of radius 10 cells with a vertical axis (z)
+    standing on it: they meet along a circle, half a cell off its tangent line by
+    H^2 / (8 r) = 1.25 % of a cell."""
+    r = 10 * H
+    ys = np.linspace(-1.5 * H, 1.5 * H, 7)
+    floor = np.array([(x, y, 0.0) for x in np.linspace(-2 * H, -0.1 * H, 6) for y in ys])
+    # the cylinder's wall (centre at x = r), rising along z from the floor at x = 0
+    wall = np.array(
+        [(r - np.sqrt(r * r - y * y), y, z) for z in np.linspace(0.1 * H, 2 * H, 6) for y in ys]
+    )
+    centre = np.array([0.1 * H, 0.0, 0.1 * H])
+    a = side_patch(floor, centre, np.array([0.0, 0.0, 1.0]), TOL)
+    b = side_patch(wall, centre, np.array([-1.0, 0.0, 0.0]), TOL)
+    assert a is not None and b is not None
+    assert crease_planes(a, b, centre, np.array([0.0, 1.0, 0.0]), H, TOL) is None
