@@ -30,11 +30,11 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import ContentMap
-from adaproj_edge.geometry.creases import CREASE_COS, unfold_creases
+from adaproj_edge.geometry.creases import CREASE_COS, Unfolding
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.geometry.triangles import grid_triangles, triangle_normals
+from adaproj_edge.geometry.triangles import triangle_normals
 from adaproj_edge.render.maps import PixelLayout
-from adaproj_edge.render.seams import surface_weights
+from adaproj_edge.render.seams import grid_unfolding, surface_weights
 from adaproj_edge.warp.mesh import MeshGeometry
 
 STEP = 8  # sample every STEP-th pixel along x and y (the seams' band is 12 px wide)
@@ -80,8 +80,11 @@ class DisplaySamples:
         layout = PixelLayout.build(mesh.grid_uv, proj, step)
         layout = layout.onto_mesh(mesh.grid_uv, proj, depth, step)
         bary = np.stack([layout.l0, layout.l1, layout.l2])
+        folded = _folded(mesh)
+        # the creases unfolded once: for the weights and to find the samples' sides
+        unfolding = grid_unfolding(mesh.grid_uv, depth, proj, surface) if folded.any() else None
         grid_corners, w = surface_weights(
-            mesh.grid_uv, depth, proj, surface, layout.tri, bary, points
+            mesh.grid_uv, depth, proj, surface, layout.tri, bary, points, unfolding
         )
         # the display's grid vertices as the mesh's compact vertices
         compact = mesh.index[grid_corners.reshape(grid_corners.shape[0], -1)]
@@ -97,10 +100,9 @@ class DisplaySamples:
             [np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)]
         )
         tris = tris[shown[tris].all(axis=1)]
-        folded = _folded(mesh)
-        if folded.any():
+        if unfolding is not None:
             # the map has a kink at a crease: a lattice triangle across it does not count
-            across = _across_crease(mesh, surface, layout.tri, points, tris, folded)
+            across = _across_crease(unfolding, layout.tri, points, tris, folded)
             tris = tris[~across]
         x = points.reshape(-1, 3)
         dx = np.stack([x[tris[:, 1]] - x[tris[:, 0]], x[tris[:, 2]] - x[tris[:, 0]]], axis=2)
@@ -164,8 +166,7 @@ def _folded(mesh: MeshGeometry) -> NDArray[np.bool_]:
 
 
 def _across_crease(
-    mesh: MeshGeometry,
-    surface: Surface,
+    unfolding: Unfolding,
     tri: NDArray[np.intp],
     points: FloatArray,
     tris: NDArray[np.intp],
@@ -174,19 +175,12 @@ def _across_crease(
     """Which lattice triangles ``tris`` (M, 3) lie across a crease: one of their samples
     is in a grid triangle ``folded`` (per grid triangle) and two of them lie on planes
     further apart than a crease's (``CREASE_COS``). A sample's plane is its grid
-    triangle's, or in a folded one the plane of the crease's side it lies nearer to
-    (:func:`~adaproj_edge.geometry.creases.unfold_creases`, as the display unfolds it).
+    triangle's ``tri``, or in a folded one the plane of the crease's side it lies nearer
+    to (``unfolding``: the grid triangles', as the display unfolds them).
 
     Samples within a folded triangle on one side of its crease still count: the display
     maps them through their side's plane, which the surface leaves only by an isometry
     (the tests' scorer leaves out only its triangles across the crease, too)."""
-    rows, cols = mesh.grid_uv.shape[:2]
-    corners = grid_triangles(rows - 1, cols - 1)
-    depth = mesh.points[:, 2].copy()
-    depth[~mesh.used] = np.nan
-    proj = surface.projector
-    P = (proj.rays(mesh.grid_uv) * depth.reshape(rows, cols)[..., None]).reshape(-1, 3)
-    unfolding = unfold_creases(surface, mesh.grid_uv.reshape(-1, 2)[corners], corners, P)
     t = tri.reshape(-1)
     x = points.reshape(-1, 3)
     normal = triangle_normals(unfolding.points)[t]

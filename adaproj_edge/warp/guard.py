@@ -287,11 +287,17 @@ def guard(
             continue
         # judged where the candidate's placement puts it (the measures do not change
         # with a similarity, and what is salient barely moves): only the blend kept is
-        # placed (a placement costs more than the measure)
-        xy = pa.apply(vt)
+        # placed (a placement costs more than the measure); but with a crease through
+        # the subject what it straddles moves with the placement, so there the blend is
+        # judged where it is placed (the named cylinder on a floor, one-left subject:
+        # the blend t = 0.25 as displayed 0.98x the conformal warp's angle error where
+        # the content-aware warp was placed, 0.81x where it is)
+        pt = place(mesh, vt, content_map.content_size, up, pa) if judge.on_crease() else None
+        xy = (pa if pt is None else pt).apply(vt)
         m = subject_distortion(mesh, xy, content_map)
         if judge.no_worse(xy, m, "blend"):
-            pt = place(mesh, vt, content_map.content_size, up, pa)
+            if pt is None:
+                pt = place(mesh, vt, content_map.content_size, up, pa)
             meta.update(
                 choice="blend",
                 reason=f"the {name} warp alone is worse in angle or size",
@@ -369,10 +375,14 @@ class _Judge:
         self._display: DisplaySamples | None = None
         self._crease: bool | None = None
 
-    def _on_crease(self) -> bool:
-        """Whether a crease runs through the subject (the conformal warp's salient mesh
-        triangles): the mesh measures such a triangle by its unfolded shape alone, blind
-        to how the display bends on either side of the crease within it."""
+    def on_crease(self) -> bool:
+        """Whether the display judges and a crease runs through the subject (the
+        conformal warp's salient mesh triangles): the mesh measures such a triangle by
+        its unfolded shape alone, blind to how the display bends on either side of the
+        crease within it. A conformal warp without distortion by the mesh (a corner
+        of planes) says the unfolding explains the surface: the mesh is right there."""
+        if self.surface is None or max(self.m_conf.angle, self.m_conf.size) <= FLOOR:
+            return False
         if self._crease is None:
             fold = creased(self.mesh)
             self._crease = bool(
@@ -388,7 +398,7 @@ class _Judge:
         by ``angle_margin`` when given)."""
         if not no_worse(m, self.m_conf, self.margin, angle_margin):
             return False
-        if self.surface is None or (no_worse(m, self.m_conf, SURE) and not self._on_crease()):
+        if self.surface is None or (no_worse(m, self.m_conf, SURE) and not self.on_crease()):
             return True
         if self._display is None:
             self._display = DisplaySamples.of(self.mesh, self.surface)
