@@ -102,6 +102,18 @@ def _in_frame_of(
     return out
 
 
+def grid_unfolding(
+    grid_uv: FloatArray, depth: FloatArray, projector: Projector, surface: Surface
+) -> Unfolding:
+    """The creases of the grid's triangles (``grid_triangles`` order) unfolded
+    (:func:`~adaproj_edge.geometry.creases.unfold_creases`); ``grid_uv`` (R, C, 2) and
+    ``depth`` (R, C) as :func:`surface_weights` takes them."""
+    rows, cols = grid_uv.shape[:2]
+    corners = grid_triangles(rows - 1, cols - 1)
+    P = (projector.rays(grid_uv) * depth[..., None]).reshape(-1, 3)
+    return unfold_creases(surface, grid_uv.reshape(-1, 2)[corners], corners, P)
+
+
 def surface_weights(
     grid_uv: FloatArray,
     depth: FloatArray,
@@ -110,6 +122,7 @@ def surface_weights(
     tri: IntArray,
     barycentric: FloatArray,
     points: FloatArray | None = None,
+    unfolding: Unfolding | None = None,
 ) -> tuple[NDArray[np.int32], FloatArray]:
     """Seam-blended surface weights of every pixel (or of the pixels ``tri`` describes,
     given their ``points``).
@@ -125,6 +138,8 @@ def surface_weights(
     barycentric : (3, H, W) each pixel's pixel-space barycentric weights in it.
     points : (H, W, 3), optional
         Each pixel's own surface point; default: the dense surface (every pixel).
+    unfolding : Unfolding, optional
+        The grid triangles' :func:`grid_unfolding`, when the caller has it already.
 
     Returns
     -------
@@ -136,7 +151,8 @@ def surface_weights(
     corners = grid_triangles(rows - 1, cols - 1)
     neighbours = grid_neighbours(rows - 1, cols - 1)
     P = (projector.rays(grid_uv) * depth[..., None]).reshape(-1, 3)
-    unfolding = unfold_creases(surface, grid_uv.reshape(-1, 2)[corners], corners, P)
+    if unfolding is None:
+        unfolding = grid_unfolding(grid_uv, depth, projector, surface)
     bary, offset = _planes(P, unfolding)
     X = (surface.dense().points if points is None else points).astype(np.float64)
     X_own = unfolding.unfold_points(tri, X)

@@ -11,8 +11,14 @@ every :data:`STEP`-th pixel (they depend on the mesh and the surface alone, not 
 the vertices go) and scores any positions of the mesh the way the display shows them:
 per small triangle of the sample lattice, the Jacobian content -> surface, its angle
 error and log size, counted where its content is salient. The guard builds it only for
-a close call (:data:`~adaproj_edge.warp.guard.SURE`): about 40 ms for a 20x20 grid, 180 ms
-for the bumps' refined 82x56 one (one core, the other busy).
+a close call (:data:`~adaproj_edge.warp.guard.SURE`) or a crease through the subject:
+about 40 ms for a 20x20 grid, 180 ms for the bumps' refined 82x56 one (one core, the
+other busy).
+
+At a crease the map has a kink: a lattice triangle across it does not count. Its
+samples on either side, in the creased mesh triangle too, do: the display unfolds them
+onto their side's plane, an isometry of the surface there, so what they show is the
+display's own distortion (on a floor seen grazing it is most of the subject's).
 """
 
 from __future__ import annotations
@@ -24,14 +30,16 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.geometry.creases import CREASE_COS, Unfolding
 from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.geometry.triangles import triangle_normals
 from adaproj_edge.render.maps import PixelLayout
-from adaproj_edge.render.seams import surface_weights
+from adaproj_edge.render.seams import grid_unfolding, surface_weights
 from adaproj_edge.warp.mesh import MeshGeometry
 
 STEP = 8  # sample every STEP-th pixel along x and y (the seams' band is 12 px wide)
 # a triangle whose 3D corners differ from its unfolded shape by this much (relative) has
-# a crease through it: its samples do not count (the map is not differentiable there)
+# a crease through it
 UNFOLDED = 1e-6
 
 
@@ -72,22 +80,19 @@ class DisplaySamples:
         layout = PixelLayout.build(mesh.grid_uv, proj, step)
         layout = layout.onto_mesh(mesh.grid_uv, proj, depth, step)
         bary = np.stack([layout.l0, layout.l1, layout.l2])
+        folded = _folded(mesh)
+        # the creases unfolded once: for the weights and to find the samples' sides
+        unfolding = grid_unfolding(mesh.grid_uv, depth, proj, surface) if folded.any() else None
         grid_corners, w = surface_weights(
-            mesh.grid_uv, depth, proj, surface, layout.tri, bary, points
+            mesh.grid_uv, depth, proj, surface, layout.tri, bary, points, unfolding
         )
         # the display's grid vertices as the mesh's compact vertices
         compact = mesh.index[grid_corners.reshape(grid_corners.shape[0], -1)]
         w = w.reshape(w.shape[0], -1)
         w = np.where(compact >= 0, w, np.nan)  # a corner without surface: no sample
-        shown = np.isfinite(w).all(axis=0) & np.isfinite(points.reshape(-1, 3)).all(axis=1)
-        # where a crease runs through the pixel's own triangle, the map has a kink
-        corners3 = mesh.p[mesh.tris]
-        shape_len = np.linalg.norm(mesh.shapes - np.roll(mesh.shapes, -1, axis=1), axis=2)
-        tri_len = np.linalg.norm(corners3 - np.roll(corners3, -1, axis=1), axis=2)
-        flat = np.all(np.abs(tri_len - shape_len) <= UNFOLDED * shape_len, axis=1)
-        grid_flat = np.zeros(2 * mesh.grid.rows * mesh.grid.cols, dtype=bool)  # per grid triangle
-        grid_flat[mesh.topology.rows] = flat
-        shown &= grid_flat[layout.tri.reshape(-1)]
+        shown: NDArray[np.bool_] = np.asarray(
+            np.isfinite(w).all(axis=0) & np.isfinite(points.reshape(-1, 3)).all(axis=1)
+        )
         rows, cols = layout.tri.shape
         idx = np.arange(rows * cols).reshape(rows, cols)
         a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]
@@ -95,6 +100,10 @@ class DisplaySamples:
             [np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)]
         )
         tris = tris[shown[tris].all(axis=1)]
+        if unfolding is not None:
+            # the map has a kink at a crease: a lattice triangle across it does not count
+            across = _across_crease(unfolding, layout.tri, points, tris, folded)
+            tris = tris[~across]
         x = points.reshape(-1, 3)
         dx = np.stack([x[tris[:, 1]] - x[tris[:, 0]], x[tris[:, 2]] - x[tris[:, 0]]], axis=2)
         gram = np.einsum("tca,tcb->tab", dx, dx)
@@ -133,3 +142,56 @@ class DisplaySamples:
         centroids = (q0 + q1 + q2) / 3.0
         weight = content_map.weights(centroids).astype(np.float64) * good
         return np.where(good, angle, 0.0), np.where(good, log_size, 0.0), weight
+
+
+def creased(mesh: MeshGeometry) -> NDArray[np.bool_]:
+    """Whether a crease runs through each mesh triangle (T,): its 3D corners differ from
+    its unfolded shape by more than :data:`UNFOLDED` (memoised on ``mesh``)."""
+
+    def make() -> NDArray[np.bool_]:
+        corners3 = mesh.p[mesh.tris]
+        shape_len = np.linalg.norm(mesh.shapes - np.roll(mesh.shapes, -1, axis=1), axis=2)
+        tri_len = np.linalg.norm(corners3 - np.roll(corners3, -1, axis=1), axis=2)
+        out: NDArray[np.bool_] = np.any(np.abs(tri_len - shape_len) > UNFOLDED * shape_len, axis=1)
+        return out
+
+    return mesh.remember("creased", make)
+
+
+def _folded(mesh: MeshGeometry) -> NDArray[np.bool_]:
+    """:func:`creased` per grid triangle (``grid_triangles`` order; False without one)."""
+    out = np.zeros(2 * mesh.grid.rows * mesh.grid.cols, dtype=bool)
+    out[mesh.topology.rows] = creased(mesh)
+    return out
+
+
+def _across_crease(
+    unfolding: Unfolding,
+    tri: NDArray[np.intp],
+    points: FloatArray,
+    tris: NDArray[np.intp],
+    folded: NDArray[np.bool_],
+) -> NDArray[np.bool_]:
+    """Which lattice triangles ``tris`` (M, 3) lie across a crease: one of their samples
+    is in a grid triangle ``folded`` (per grid triangle) and two of them lie on planes
+    further apart than a crease's (``CREASE_COS``). A sample's plane is its grid
+    triangle's ``tri``, or in a folded one the plane of the crease's side it lies nearer
+    to (``unfolding``: the grid triangles', as the display unfolds them).
+
+    Samples within a folded triangle on one side of its crease still count: the display
+    maps them through their side's plane, which the surface leaves only by an isometry
+    (the tests' scorer leaves out only its triangles across the crease, too)."""
+    t = tri.reshape(-1)
+    x = points.reshape(-1, 3)
+    normal = triangle_normals(unfolding.points)[t]
+    f = unfolding.folded[t]
+    tf, xf = t[f], x[f]
+    da = np.abs(np.sum((xf - unfolding.point_a[tf]) * unfolding.normal_a[tf], axis=1))
+    db = np.abs(np.sum((xf - unfolding.point_b[tf]) * unfolding.normal_b[tf], axis=1))
+    normal[f] = np.where((db < da)[:, None], unfolding.normal_b[tf], unfolding.normal_a[tf])
+    n = normal[tris]  # (M, 3, 3)
+    cos = np.minimum.reduce([np.abs(np.sum(n[:, i] * n[:, (i + 1) % 3], axis=1)) for i in range(3)])
+    with np.errstate(invalid="ignore"):
+        apart = ~(cos >= CREASE_COS)  # NaN (no plane): apart too
+    out: NDArray[np.bool_] = (folded | unfolding.folded)[t][tris].any(axis=1) & apart
+    return out
