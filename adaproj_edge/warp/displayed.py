@@ -149,10 +149,15 @@ def creased(mesh: MeshGeometry) -> NDArray[np.bool_]:
     its unfolded shape by more than :data:`UNFOLDED` (memoised on ``mesh``)."""
 
     def make() -> NDArray[np.bool_]:
-        corners3 = mesh.p[mesh.tris]
-        shape_len = np.linalg.norm(mesh.shapes - np.roll(mesh.shapes, -1, axis=1), axis=2)
-        tri_len = np.linalg.norm(corners3 - np.roll(corners3, -1, axis=1), axis=2)
-        out: NDArray[np.bool_] = np.any(np.abs(tri_len - shape_len) > UNFOLDED * shape_len, axis=1)
+        out = np.zeros(mesh.tris.shape[0], dtype=bool)
+        # only an unfolded triangle's shape can differ from its corners (the others'
+        # shapes are made from them): the rest is not looked at
+        f = np.flatnonzero(mesh.folded)
+        if f.size:
+            shapes, corners3 = mesh.shapes[f], mesh.p[mesh.tris[f]]
+            shape_len = np.linalg.norm(shapes - np.roll(shapes, -1, axis=1), axis=2)
+            tri_len = np.linalg.norm(corners3 - np.roll(corners3, -1, axis=1), axis=2)
+            out[f] = np.any(np.abs(tri_len - shape_len) > UNFOLDED * shape_len, axis=1)
         return out
 
     return mesh.remember("creased", make)

@@ -130,6 +130,8 @@ class MeshGeometry:
         (metres), oriented as the content is (y down).
     curved : (T,) bool, the triangles a curved crease runs through (their unfolding is
         only approximate: :mod:`~adaproj_edge.warp.adaptive` refines there).
+    folded : (T,) bool, the triangles unfolded about a crease (straight or curved); the
+        others' shapes are their own corners'.
     memo : what callers derive from this geometry alone, made once (:meth:`remember`;
         the upright angle's factors, the display's samples of
         :mod:`~adaproj_edge.warp.displayed`).
@@ -143,6 +145,7 @@ class MeshGeometry:
     lengths: FloatArray
     shapes: FloatArray
     curved: NDArray[np.bool_]
+    folded: NDArray[np.bool_]
     memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     def remember(self, name: str, make: Callable[[], T]) -> T:
@@ -276,7 +279,8 @@ class MeshGeometry:
         sums = np.bincount(topo.inverse, weights=sides.ravel(), minlength=n_edges)
         counts = np.bincount(topo.inverse, minlength=n_edges)
         curved = unfolding.folded & (unfolding.softness > 0)
-        return cls(grid, grid_uv, pts, topo, coords, sums / counts, shapes, curved)
+        folded_t = np.asarray(unfolding.folded, dtype=bool)
+        return cls(grid, grid_uv, pts, topo, coords, sums / counts, shapes, curved, folded_t)
 
 
 def planar_shapes(tri_pts: FloatArray) -> FloatArray:
