@@ -8,6 +8,8 @@ circle: not a straight crease, so no planes.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -73,3 +75,32 @@ def test_a_cylinder_standing_on_a_floor_is_no_straight_crease() -> None:
     b = side_patch(wall, centre, np.array([-1.0, 0.0, 0.0]), TOL)
     assert a is not None and b is not None
     assert crease_planes(a, b, centre, np.array([0.0, 1.0, 0.0]), H, TOL) is None
+
+
+def test_a_surface_rough_all_over_is_given_up_on(monkeypatch: pytest.MonkeyPatch) -> None:
+    # waves finer than the grid: hundreds of candidates per mesh, none a straight crease
+    # between curved sides; they are tried until MISSES of them failed, not all (each
+    # tries at most its two sides' patches)
+    from adaproj_edge.geometry import creases, ruled_crease
+    from adaproj_edge.geometry.analytic import simulate_surface
+    from adaproj_edge.warp.adaptive import adaptive_mesh
+    from adaproj_edge.warp.warpmap import Grid
+
+    retries: list[int] = []
+    patches: list[int] = []
+    ruled, patch = ruled_crease.ruled_planes, ruled_crease.side_patch
+
+    def counted_ruled(retry: np.ndarray, *args: Any) -> Any:
+        retries.append(int(retry.size))
+        return ruled(retry, *args)
+
+    def counted_patch(*args: Any) -> Any:
+        patches.append(1)
+        return patch(*args)
+
+    monkeypatch.setattr(creases, "ruled_planes", counted_ruled)
+    monkeypatch.setattr(ruled_crease, "side_patch", counted_patch)
+    adaptive_mesh(simulate_surface("waves-fine", step=2), Grid(20, 20))  # (as the planner)
+    assert retries and max(retries) > 400, retries  # many candidates ...
+    # ... of which few are tried: at most MISSES each mesh, two patches each
+    assert 0 < len(patches) <= 2 * ruled_crease.MISSES * len(retries) < sum(retries) / 4
