@@ -28,10 +28,16 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+# this tree's package, not whichever is installed (so that another checkout's copy of
+# this tool times that checkout; bench_placement and bench_warp_mesh import this module)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from adaproj_edge.geometry.analytic import FINE_DETAIL, simulate_surface
 from adaproj_edge.geometry.surface import Surface
