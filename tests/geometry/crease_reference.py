@@ -3,7 +3,9 @@
 ``adaproj_edge.geometry.creases`` decides every triangle at once; this module keeps the
 plain per-triangle reading of the same rules (its loop over the rough triangles) so
 that the tests can check the two agree. It returns, for each triangle, whether it is
-unfolded and with which planes, rotation and softness.
+unfolded and with which planes, rotation and softness. The product's cap on the ruled
+crease's tries (``ruled_crease.MISSES``: a cost bound for surfaces rough all over) is not
+read here; the surfaces the two are compared on stay below it.
 """
 
 from __future__ import annotations
