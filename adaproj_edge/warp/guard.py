@@ -438,7 +438,10 @@ def guard_grid(
     The vertices kept, (R, C, 2), and the guard's meta.
     """
     flat = image_xy.reshape(-1, 2)
-    as_is = Placement(0.0, 1.0, np.zeros(2))  # content pixels already
+    # content pixels already: the content's rectangle is the frame (its centre warm-starts
+    # the placements of a flattened warp or a blend)
+    w, h = content_map.content_size
+    as_is = Placement(0.0, 1.0, np.zeros(2), np.array([0.5 * w - 0.5, 0.5 * h - 0.5]))
     choice = guard(mesh, (flat[mesh.verts], as_is), conformal, content_map, up, flatten=True)
     if choice.meta["choice"] == "content-aware":
         return image_xy, choice.meta
