@@ -114,6 +114,8 @@ class Surface:
     points: NDArray[np.float32]
     projector: Projector
     meta: dict[str, Any] = field(default_factory=dict)
+    # nodes whose ray meets the surface, counted once (a warp checks it on every call)
+    _valid_count: int = field(init=False, repr=False, compare=False, default=0)
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.points)
@@ -130,6 +132,7 @@ class Surface:
             pts = pts.copy()
             pts[bad] = np.nan
         object.__setattr__(self, "points", pts)
+        object.__setattr__(self, "_valid_count", int(bad.size - np.count_nonzero(bad)))
 
     # ------------------------------------------------------------------ queries
     @property
@@ -145,8 +148,8 @@ class Surface:
     @property
     def valid_fraction(self) -> float:
         """Fraction of nodes whose ray meets the surface."""
-        valid = self.valid
-        return float(np.count_nonzero(valid) / valid.size)  # np.mean(valid), without floats
+        h, w = self.shape
+        return float(self._valid_count / (h * w))
 
     def lattice_scale(self) -> tuple[float, float]:
         """Projector pixels per lattice step along x and y."""
