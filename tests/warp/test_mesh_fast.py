@@ -231,6 +231,23 @@ def test_valid_fraction_is_the_mean(seed: int, h: int, w: int, holes: float) -> 
     assert type(surface.valid_fraction) is float
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31), h=st.integers(2, 12), w=st.integers(2, 12))
+def test_valid_fraction_counts_what_a_ray_meets(seed: int, h: int, w: int) -> None:
+    """Counted once when the surface is made: a node with any coordinate not finite, or
+    behind the projector, does not count (ground truth counted here, node by node)."""
+    rng = np.random.default_rng(seed)
+    points = rng.uniform(-1, 2, (h, w, 3)).astype(np.float32)  # z <= 0 behind: some
+    bad = rng.random((h, w, 3)) < 0.1
+    points[bad] = rng.choice([np.nan, np.inf, -np.inf], size=int(bad.sum()))
+    meets = sum(
+        all(np.isfinite(points[i, j])) and points[i, j, 2] > 0 for i in range(h) for j in range(w)
+    )
+    surface = Surface(points, Projector.default())
+    assert surface.valid_fraction == meets / (h * w)
+    assert int(np.count_nonzero(surface.valid)) == meets
+
+
 @settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**31), holes=st.sampled_from([0.0, 0.1]))
 def test_a_kept_sampling_serves_every_surface_of_the_lattice(seed: int, holes: float) -> None:
