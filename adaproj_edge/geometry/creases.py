@@ -17,12 +17,16 @@ does), and a vertex takes its plane from its flat triangles where it has any, so
 sliver's tilt does not spoil its neighbours' unfolding.
 
 A straight crease may have a curved side (a wall meeting a cone along a ruling): its
-rough triangles are then explained neither by their corners' planes (the cone bends
-away from them) nor as a curved crease (their chord is too good). For those, each
-side is fitted with a quadratic patch from its smooth triangles next to the crease
+corners' planes are tangent to the cone a cell away, so the line they meet along is off
+the crease, whether they explain its triangles (within ``FIT``, or as a curved crease)
+or not. So where a side is curved (a corner of the triangle has no flat triangles) or
+the corners' planes do not explain a rough triangle, each side is fitted with a
+quadratic patch from its smooth triangles next to the crease
 (:mod:`adaproj_edge.geometry.ruled_crease`); where the patches meet along a straight
 line and explain the triangle to ``RULED_FIT`` of its size, it is unfolded about that
-line with the patches' tangent planes there.
+line with the patches' tangent planes there (a triangle its corners' planes explained
+only if a patch is bent: two planes are the corners' own, a curved crease seen along
+a ruling of its curved side, or a sliver at a corner).
 """
 
 from __future__ import annotations
@@ -162,7 +166,8 @@ def unfold_measured(
     seen_t = np.isfinite(normals).all(axis=0)
     acc = _vertex_normals(tris, normals, size, ~slight & seen_t, points.shape[0])
     loose = _vertex_normals(tris, normals, size, ~rough & slight & seen_t, points.shape[0])
-    acc = np.where(np.any(acc != 0.0, axis=0), acc, loose)
+    has_flat = np.any(acc != 0.0, axis=0)
+    acc = np.where(has_flat, acc, loose)
     with np.errstate(invalid="ignore", divide="ignore"):
         vn = acc / np.sqrt(dot_first(acc, acc))  # (3, N)
     # only triangles whose corners' planes differ can hold a crease (checked for all
@@ -214,7 +219,14 @@ def unfold_measured(
     # only a crease of RULED_CREASE or more is looked at so; the shift it mends grows
     # with the crease's angle)
     sharp = np.einsum("cj,cj->c", na, nb) < RULED_CREASE_COS
-    retry = np.flatnonzero(np.any(seen, axis=1) & rough_c & ~straight & ~curved_crease & sharp)
+    # a side with a corner without flat triangles is curved: its corners' planes are
+    # tangent to it a cell away from the crease, so the sides' patches are tried first
+    # (taken where one of them is bent); a rough triangle its corners' planes do not
+    # explain is tried too (taken with plane patches as well)
+    curved_side = ~np.all(has_flat[tris[cand]], axis=1)
+    eligible = np.any(seen, axis=1) & sharp
+    unexplained = rough_c & ~straight & ~curved_crease
+    retry = np.flatnonzero(eligible & (curved_side | unexplained))
     if retry.size:
         excluded = np.zeros(tris.shape[0], dtype=bool)
         excluded[rough_t[differ]] = True
@@ -226,13 +238,19 @@ def unfold_measured(
             normals,
             probes,
             size,
-            (seen_t & ~slight, seen_t & ~rough & slight & ~excluded),
+            (
+                seen_t & ~slight,
+                seen_t & ~rough & slight & ~excluded,
+                seen_t & ~rough & slight & excluded,
+            ),
             (na, pa, nb, pb),
             pair_a,
             lone,
             RULED_FIT,
+            ~unexplained[retry],
         )
         straight[curved] = True
+        curved_crease[curved] = False
     keep = np.any(seen, axis=1) & (straight | curved_crease)
     if not np.any(keep):
         return _nothing_folded(tri_pts)
