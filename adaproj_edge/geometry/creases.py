@@ -26,7 +26,10 @@ quadratic patch from its smooth triangles next to the crease
 line and explain the triangle to ``RULED_FIT`` of its size, it is unfolded about that
 line with the patches' tangent planes there (a triangle its corners' planes explained
 only if a patch is bent: two planes are the corners' own, a curved crease seen along
-a ruling of its curved side, or a sliver at a corner).
+a ruling of its curved side, or a sliver at a corner). The patches are fitted only
+next to a kink (a triangle at the candidate's corners whose probes are not a
+quadratic's to ``KINK``): sensed depth smoothed across a jump is rough and its
+corners' planes are far apart, yet it holds no crease for them to find.
 """
 
 from __future__ import annotations
@@ -49,6 +52,9 @@ CURVED_FIT = 0.2  # ... or, on a curved crease, this much better than its chord 
 SAME_SIDE_COS = float(np.cos(np.deg2rad(12.0)))  # two corners of one side: nearly one plane
 RULED_FIT = 1e-3  # a straight crease with curved sides: their patches explain them so
 RULED_CREASE_COS = float(np.cos(np.deg2rad(10.0)))  # ... where its planes are this far apart
+# ... and a triangle at its corners has a kink: a quadratic through that triangle's
+# corners and edge midpoints misses its centroid by this much of its size
+KINK = 1e-3
 SOFTNESS = 4.0  # on a curved crease, the side is chosen softly over this many fit residuals
 
 
@@ -146,11 +152,12 @@ def unfold_measured(
     planes_first`) and surface at the probes (3, 4, T) (component-first) are known."""
     size = np.sqrt(area2)
     # the probes' distances (4, T) to their triangle's plane
-    dist = np.abs(
+    signed = (
         (probes[0] - tri_pts[None, :, 0, 0]) * normals[0]
         + (probes[1] - tri_pts[None, :, 0, 1]) * normals[1]
         + (probes[2] - tri_pts[None, :, 0, 2]) * normals[2]
     )
+    dist = np.abs(signed)
     off = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=0)
     rough = off > ROUGH * size
     # a crease may run just past a corner: the triangle is then nearly flat, but its
@@ -228,6 +235,11 @@ def unfold_measured(
     unexplained = rough_c & ~straight & ~curved_crease
     retry = np.flatnonzero(eligible & (curved_side | unexplained))
     if retry.size:
+        # only next to a kink: a surface smooth at the grid's scale there (sensed depth,
+        # smoothed across a jump: rough, its corners' planes far apart, yet no crease)
+        # holds no crease for the patches to find, and trying costs ~0.4 ms each
+        retry = retry[_kinked(tris, signed, size, points.shape[0])[tris[cand[retry]]].any(axis=1)]
+    if retry.size:
         excluded = np.zeros(tris.shape[0], dtype=bool)
         excluded[rough_t[differ]] = True
         curved = ruled_planes(
@@ -280,6 +292,18 @@ def unfold_measured(
         if not straight[c]:  # a curved crease: soften the side choice
             unfolding.softness[t] = SOFTNESS * worst[c]
     return unfolding
+
+
+def _kinked(tris: IntArray, signed: FloatArray, size: FloatArray, n: int) -> NDArray[np.bool_]:
+    """Which of the ``n`` vertices (n,) have a triangle of ``tris`` (T, 3) with a kink:
+    its probes' signed distances ``signed`` (4, T) to its plane (edge midpoints, then
+    centroid) are not a quadratic's (on one, the centroid's is 4/9 of the midpoints'
+    sum) to :data:`KINK` of its ``size``."""
+    with np.errstate(invalid="ignore"):
+        miss = np.abs(signed[3] - 4.0 / 9.0 * (signed[0] + signed[1] + signed[2]))
+        kinked = (miss > KINK * size).astype(np.float64)
+    out: NDArray[np.bool_] = np.bincount(tris.ravel(), np.repeat(kinked, 3), minlength=n) > 0
+    return out
 
 
 def _vertex_normals(

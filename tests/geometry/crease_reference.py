@@ -19,6 +19,7 @@ from adaproj_edge.geometry.creases import (
     CREASE_COS,
     CURVED_FIT,
     FIT,
+    KINK,
     ROUGH,
     RULED_CREASE_COS,
     RULED_FIT,
@@ -73,13 +74,16 @@ def decide(
     size: float,
     cloud: Cloud | None = None,
     curved_side: bool = False,
+    near_kink: bool = True,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]] | None:
     """Triangle ``t``'s crease, from its corners' planes' normals (3, 3), its corners (3, 3),
     its probes' surface points (4, 3) and their distances to its chord plane (4,): the
     planes a (na, pa) and b (nb, pb), the softness and the corners of side b; None when
     it is not unfolded. ``cloud`` gives a side's surface points near the triangle (for
     a straight crease with a curved side); ``curved_side``: a corner of the triangle
-    has no flat triangles (its side is curved: the sides' patches are tried first)."""
+    has no flat triangles (its side is curved: the sides' patches are tried first);
+    ``near_kink``: a triangle at its corners has a kink (the patches are tried only
+    there)."""
     groups = crease_groups(corner_normals)
     if groups is None:
         return None
@@ -98,7 +102,7 @@ def decide(
     explained = worst <= straight or (rough and worst <= CURVED_FIT * chord)
     unexplained = rough and not explained
     sharp = float(na @ nb) < RULED_CREASE_COS
-    if cloud is not None and sharp and (curved_side or unexplained):
+    if cloud is not None and near_kink and sharp and (curved_side or unexplained):
         # a straight crease with a curved side: the sides' patches meet along it (where
         # the corners' planes explain the triangle, a side's patch must be bent)
         found = _ruled(probe, corner_points, size, cloud, groups, (na, nb), not unexplained)
@@ -152,13 +156,19 @@ def unfold_reference(
     dists: dict[int, FloatArray] = {}
     rough: set[int] = set()
     slight: set[int] = set()
+    kinked_vertices: set[int] = set()
     for t, (a, b, c) in enumerate(tris):
         p0, p1, p2 = points[a], points[b], points[c]
         n = -np.cross(p1 - p0, p2 - p0)  # facing the projector
         area2 = float(np.linalg.norm(n))
         sizes[t] = float(np.sqrt(area2))
         normals[t] = n / area2 if area2 > 0 else np.full(3, np.nan)
-        dists[t] = np.abs((probes[t] - p0) @ normals[t])
+        signed = (probes[t] - p0) @ normals[t]
+        dists[t] = np.abs(signed)
+        # a kink: the centroid's height is not 4/9 of the edge midpoints' (a quadratic's)
+        miss = abs(float(signed[3] - 4.0 / 9.0 * (signed[0] + signed[1] + signed[2])))
+        if miss > KINK * sizes[t]:
+            kinked_vertices.update(int(v) for v in (a, b, c))
         finite = dists[t][np.isfinite(dists[t])]
         if finite.size and float(finite.max()) > ROUGH * sizes[t]:
             rough.add(t)
@@ -217,8 +227,17 @@ def unfold_reference(
         if not np.all(np.isfinite(corner_n)):
             continue
         curved_side = not all(bool(has_flat[v, 0]) for v in tris[t])
+        near_kink = any(int(v) in kinked_vertices for v in tris[t])
         found = decide(
-            t, corner_n, points[tris[t]], probes[t], dists[t], sizes[t], cloud_of(t), curved_side
+            t,
+            corner_n,
+            points[tris[t]],
+            probes[t],
+            dists[t],
+            sizes[t],
+            cloud_of(t),
+            curved_side,
+            near_kink,
         )
         if found is not None:
             out[t] = found
