@@ -34,6 +34,10 @@ FIT_ROUNDS = 4  # fits, each leaving out the points farthest off the one before
 # surface rough all over (waves finer than the grid: ~1000 candidates, none a straight
 # crease, 0.3 ms each) is not a few straight creases; a cone wall's fail 0-11 times
 MISSES = 24
+# ... and those its corners' planes explain (a curved side: a curved crease's too) until
+# this many were not (a cylinder on a floor: every one of its crease's, ~0.8 ms each; a
+# cone wall's fail 0-12 times, among 10-60 found; seed 1 case 107 changes at 2)
+BENT_MISSES = 4
 
 
 @dataclass(frozen=True)
@@ -240,7 +244,8 @@ def ruled_planes(
     may have only smooth triangles whose corners' planes differ). ``bent`` (as
     ``retry``): the candidate is taken only where a side's patch is bent (its corners'
     planes explain it already, but a side is curved). The candidates are tried in order
-    until :data:`MISSES` of them (plus two per one found) were not such a crease."""
+    until :data:`MISSES` of them (plus two per one found) were not such a crease, those
+    with ``bent`` until :data:`BENT_MISSES` of them (plus two per one found)."""
     na, pa, nb, pb = planes
     # each vertex's triangles of each kind (those of vertex v: table[starts[v]:starts[v + 1]])
     tables = []
@@ -252,10 +257,14 @@ def ruled_planes(
         tables.append((use[order // 3], starts))
     found: list[int] = []
     misses = 0
+    bent_misses = 0
     for c, must_bend in zip(retry, bent, strict=True):
         if misses >= MISSES + 2 * len(found):
             break
+        if must_bend and bent_misses >= BENT_MISSES + 2 * len(found):
+            continue
         misses += 1  # (taken back below when it is found)
+        bent_misses += int(must_bend)
         t = cand[c]
         d = np.cross(na[c], nb[c])
         d /= np.linalg.norm(d)
@@ -300,5 +309,6 @@ def ruled_planes(
             continue
         na[c], pa[c], nb[c], pb[c] = met
         found.append(int(c))
+        bent_misses -= int(must_bend)
         misses -= 1
     return np.array(found, dtype=np.intp)
