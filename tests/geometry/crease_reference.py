@@ -3,9 +3,10 @@
 ``adaproj_edge.geometry.creases`` decides every triangle at once; this module keeps the
 plain per-triangle reading of the same rules (its loop over the rough triangles) so
 that the tests can check the two agree. It returns, for each triangle, whether it is
-unfolded and with which planes, rotation and softness. The product's cap on the ruled
-crease's tries (``ruled_crease.MISSES``: a cost bound for surfaces rough all over) is not
-read here; the surfaces the two are compared on stay below it.
+unfolded and with which planes, rotation and softness. The product's caps on the ruled
+crease's tries (``ruled_crease.MISSES``: a cost bound for surfaces rough all over;
+``ruled_crease.BENT_MISSES``: for a curved crease's curved side) are not read here; on
+the surfaces the two are compared on, the tries past them find nothing.
 """
 
 from __future__ import annotations
