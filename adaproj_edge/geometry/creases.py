@@ -17,12 +17,19 @@ does), and a vertex takes its plane from its flat triangles where it has any, so
 sliver's tilt does not spoil its neighbours' unfolding.
 
 A straight crease may have a curved side (a wall meeting a cone along a ruling): its
-rough triangles are then explained neither by their corners' planes (the cone bends
-away from them) nor as a curved crease (their chord is too good). For those, each
-side is fitted with a quadratic patch from its smooth triangles next to the crease
+corners' planes are tangent to the cone a cell away, so the line they meet along is off
+the crease, whether they explain its triangles (within ``FIT``, or as a curved crease)
+or not. So where a side is curved (a corner of the triangle has no flat triangles) or
+the corners' planes do not explain a rough triangle, each side is fitted with a
+quadratic patch from its smooth triangles next to the crease
 (:mod:`adaproj_edge.geometry.ruled_crease`); where the patches meet along a straight
 line and explain the triangle to ``RULED_FIT`` of its size, it is unfolded about that
-line with the patches' tangent planes there.
+line with the patches' tangent planes there (a triangle its corners' planes explained
+only if a patch is bent: two planes are the corners' own, a curved crease seen along
+a ruling of its curved side, or a sliver at a corner). The patches are fitted only
+next to a kink (a triangle at the candidate's corners whose probes are not a
+quadratic's to ``KINK``): sensed depth smoothed across a jump is rough and its
+corners' planes are far apart, yet it holds no crease for them to find.
 """
 
 from __future__ import annotations
@@ -45,6 +52,9 @@ CURVED_FIT = 0.2  # ... or, on a curved crease, this much better than its chord 
 SAME_SIDE_COS = float(np.cos(np.deg2rad(12.0)))  # two corners of one side: nearly one plane
 RULED_FIT = 1e-3  # a straight crease with curved sides: their patches explain them so
 RULED_CREASE_COS = float(np.cos(np.deg2rad(10.0)))  # ... where its planes are this far apart
+# ... and a triangle at its corners has a kink: a quadratic through that triangle's
+# corners and edge midpoints misses its centroid by this much of its size
+KINK = 1e-3
 SOFTNESS = 4.0  # on a curved crease, the side is chosen softly over this many fit residuals
 
 
@@ -142,11 +152,12 @@ def unfold_measured(
     planes_first`) and surface at the probes (3, 4, T) (component-first) are known."""
     size = np.sqrt(area2)
     # the probes' distances (4, T) to their triangle's plane
-    dist = np.abs(
+    signed = (
         (probes[0] - tri_pts[None, :, 0, 0]) * normals[0]
         + (probes[1] - tri_pts[None, :, 0, 1]) * normals[1]
         + (probes[2] - tri_pts[None, :, 0, 2]) * normals[2]
     )
+    dist = np.abs(signed)
     off = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=0)
     rough = off > ROUGH * size
     # a crease may run just past a corner: the triangle is then nearly flat, but its
@@ -162,7 +173,8 @@ def unfold_measured(
     seen_t = np.isfinite(normals).all(axis=0)
     acc = _vertex_normals(tris, normals, size, ~slight & seen_t, points.shape[0])
     loose = _vertex_normals(tris, normals, size, ~rough & slight & seen_t, points.shape[0])
-    acc = np.where(np.any(acc != 0.0, axis=0), acc, loose)
+    has_flat = np.any(acc != 0.0, axis=0)
+    acc = np.where(has_flat, acc, loose)
     with np.errstate(invalid="ignore", divide="ignore"):
         vn = acc / np.sqrt(dot_first(acc, acc))  # (3, N)
     # only triangles whose corners' planes differ can hold a crease (checked for all
@@ -214,7 +226,19 @@ def unfold_measured(
     # only a crease of RULED_CREASE or more is looked at so; the shift it mends grows
     # with the crease's angle)
     sharp = np.einsum("cj,cj->c", na, nb) < RULED_CREASE_COS
-    retry = np.flatnonzero(np.any(seen, axis=1) & rough_c & ~straight & ~curved_crease & sharp)
+    # a side with a corner without flat triangles is curved: its corners' planes are
+    # tangent to it a cell away from the crease, so the sides' patches are tried first
+    # (taken where one of them is bent); a rough triangle its corners' planes do not
+    # explain is tried too (taken with plane patches as well)
+    curved_side = ~np.all(has_flat[tris[cand]], axis=1)
+    eligible = np.any(seen, axis=1) & sharp
+    unexplained = rough_c & ~straight & ~curved_crease
+    retry = np.flatnonzero(eligible & (curved_side | unexplained))
+    if retry.size:
+        # only next to a kink: a surface smooth at the grid's scale there (sensed depth,
+        # smoothed across a jump: rough, its corners' planes far apart, yet no crease)
+        # holds no crease for the patches to find, and trying costs ~0.4 ms each
+        retry = retry[_kinked(tris, signed, size, points.shape[0])[tris[cand[retry]]].any(axis=1)]
     if retry.size:
         excluded = np.zeros(tris.shape[0], dtype=bool)
         excluded[rough_t[differ]] = True
@@ -226,13 +250,19 @@ def unfold_measured(
             normals,
             probes,
             size,
-            (seen_t & ~slight, seen_t & ~rough & slight & ~excluded),
+            (
+                seen_t & ~slight,
+                seen_t & ~rough & slight & ~excluded,
+                seen_t & ~rough & slight & excluded,
+            ),
             (na, pa, nb, pb),
             pair_a,
             lone,
             RULED_FIT,
+            ~unexplained[retry],
         )
         straight[curved] = True
+        curved_crease[curved] = False
     keep = np.any(seen, axis=1) & (straight | curved_crease)
     if not np.any(keep):
         return _nothing_folded(tri_pts)
@@ -262,6 +292,18 @@ def unfold_measured(
         if not straight[c]:  # a curved crease: soften the side choice
             unfolding.softness[t] = SOFTNESS * worst[c]
     return unfolding
+
+
+def _kinked(tris: IntArray, signed: FloatArray, size: FloatArray, n: int) -> NDArray[np.bool_]:
+    """Which of the ``n`` vertices (n,) have a triangle of ``tris`` (T, 3) with a kink:
+    its probes' signed distances ``signed`` (4, T) to its plane (edge midpoints, then
+    centroid) are not a quadratic's (on one, the centroid's is 4/9 of the midpoints'
+    sum) to :data:`KINK` of its ``size``."""
+    with np.errstate(invalid="ignore"):
+        miss = np.abs(signed[3] - 4.0 / 9.0 * (signed[0] + signed[1] + signed[2]))
+        kinked = (miss > KINK * size).astype(np.float64)
+    out: NDArray[np.bool_] = np.bincount(tris.ravel(), np.repeat(kinked, 3), minlength=n) > 0
+    return out
 
 
 def _vertex_normals(

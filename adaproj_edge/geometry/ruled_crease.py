@@ -29,10 +29,15 @@ NEWTON_STEPS = 8
 REACH = 2.0  # the crease must lie within this many triangle sizes of the triangle
 MIN_BENT_POINTS = 9  # a bent side is fitted from at least this many points
 OUTLIERS = 0.2  # ... of which at most this share may be left out
+FIT_ROUNDS = 4  # fits, each leaving out the points farthest off the one before
 # a crease's candidates are tried until this many (plus two per one found) failed: a
 # surface rough all over (waves finer than the grid: ~1000 candidates, none a straight
 # crease, 0.3 ms each) is not a few straight creases; a cone wall's fail 0-11 times
 MISSES = 24
+# ... and those its corners' planes explain (a curved side: a curved crease's too) until
+# this many were not (a cylinder on a floor: every one of its crease's, ~0.8 ms each; a
+# cone wall's fail 0-12 times, among 10-60 found; seed 1 case 107 changes at 2)
+BENT_MISSES = 4
 
 
 @dataclass(frozen=True)
@@ -80,7 +85,7 @@ def side_patch(
     for cols, least in ((3, 3), (6, MIN_BENT_POINTS)):
         basis = quad[:, :cols]
         use = np.ones(y.size, dtype=bool)
-        for _ in range(2):
+        for _ in range(FIT_ROUNDS):
             if use.sum() < least:
                 break
             coef = _least_squares(basis[use], y[use])
@@ -89,7 +94,9 @@ def side_patch(
             off = np.abs(basis @ coef - y)
             if np.all(off[use] <= tol):
                 return SidePatch(origin, frame, np.concatenate([coef, np.zeros(6 - cols)]))
-            use = off <= tol
+            # the points farthest off left out (a few far ones, from a triangle that
+            # reaches across the crease, pull the first fit off the others too)
+            use &= off <= max(tol, 0.5 * float(off[use].max()))
             if y.size - use.sum() > OUTLIERS * y.size:
                 break
     return None
@@ -219,24 +226,28 @@ def ruled_planes(
     normals: FloatArray,
     probes: FloatArray,
     size: FloatArray,
-    settled: tuple[NDArray[np.bool_], NDArray[np.bool_]],
+    settled: tuple[NDArray[np.bool_], ...],
     planes: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
     pair_a: NDArray[np.bool_],
     lone: IntArray,
     fit: float,
+    bent: NDArray[np.bool_],
 ) -> IntArray:
     """Of the crease candidates ``retry`` (indices into ``cand``, the triangles of
     ``tris``; ``lone`` / ``pair_a`` their corner groups, as in
     :mod:`~adaproj_edge.geometry.creases`), those that are a straight crease between
     curved sides, explained to ``fit`` of their ``size``; their planes in ``planes``
     (na, pa, nb, pb: (C, 3) each) are replaced, in place, by the sides' tangent planes
-    at the crease. ``settled``: the flat triangles and the smooth ones (no crease
-    candidates), whose corners and ``probes`` (3, 4, T) give a side its points (a
-    vertex's flat triangles where it has any). The candidates are tried in order until
-    :data:`MISSES` of them (plus two per one found) were not such a crease."""
+    at the crease. ``settled``: the flat triangles, the smooth ones that are no crease
+    candidates and the other smooth ones, whose corners and ``probes`` (3, 4, T) give a
+    side its points (each vertex's first kind it has: a cone corner next to the crease
+    may have only smooth triangles whose corners' planes differ). ``bent`` (as
+    ``retry``): the candidate is taken only where a side's patch is bent (its corners'
+    planes explain it already, but a side is curved). The candidates are tried in order
+    until :data:`MISSES` of them (plus two per one found) were not such a crease, those
+    with ``bent`` until :data:`BENT_MISSES` of them (plus two per one found)."""
     na, pa, nb, pb = planes
-    # each vertex's flat triangles, and its smooth ones (those of vertex v:
-    # table[starts[v]:starts[v + 1]])
+    # each vertex's triangles of each kind (those of vertex v: table[starts[v]:starts[v + 1]])
     tables = []
     for mask in settled:
         use = np.flatnonzero(mask)
@@ -246,10 +257,14 @@ def ruled_planes(
         tables.append((use[order // 3], starts))
     found: list[int] = []
     misses = 0
-    for c in retry:
+    bent_misses = 0
+    for c, must_bend in zip(retry, bent, strict=True):
         if misses >= MISSES + 2 * len(found):
             break
+        if must_bend and bent_misses >= BENT_MISSES + 2 * len(found):
+            continue
         misses += 1  # (taken back below when it is found)
+        bent_misses += int(must_bend)
         t = cand[c]
         d = np.cross(na[c], nb[c])
         d /= np.linalg.norm(d)
@@ -262,7 +277,7 @@ def ruled_planes(
             (nb[c], na[c], side_b),
         ):
             near = []
-            for v in tris[t, ks]:  # a vertex's flat triangles where it has any
+            for v in tris[t, ks]:  # a vertex's flat triangles where it has any, ...
                 for table, starts in tables:
                     if starts[v + 1] > starts[v]:
                         near.append(table[starts[v] : starts[v + 1]])
@@ -283,6 +298,8 @@ def ruled_planes(
         if len(patches) < 2:
             continue
         ca, cb = patches
+        if must_bend and not (np.any(ca.coef[3:] != 0.0) or np.any(cb.coef[3:] != 0.0)):
+            continue  # (two planes: the corners' planes are theirs)
         met = crease_planes(ca, cb, origin, d, float(size[t]), tol)
         probe = probes[:, :, t].T
         probe = probe[np.isfinite(probe).all(axis=1)]
@@ -292,5 +309,6 @@ def ruled_planes(
             continue
         na[c], pa[c], nb[c], pb[c] = met
         found.append(int(c))
+        bent_misses -= int(must_bend)
         misses -= 1
     return np.array(found, dtype=np.intp)

@@ -3,9 +3,10 @@
 ``adaproj_edge.geometry.creases`` decides every triangle at once; this module keeps the
 plain per-triangle reading of the same rules (its loop over the rough triangles) so
 that the tests can check the two agree. It returns, for each triangle, whether it is
-unfolded and with which planes, rotation and softness. The product's cap on the ruled
-crease's tries (``ruled_crease.MISSES``: a cost bound for surfaces rough all over) is not
-read here; the surfaces the two are compared on stay below it.
+unfolded and with which planes, rotation and softness. The product's caps on the ruled
+crease's tries (``ruled_crease.MISSES``: a cost bound for surfaces rough all over;
+``ruled_crease.BENT_MISSES``: for a curved crease's curved side) are not read here; on
+the surfaces the two are compared on, the tries past them find nothing.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from adaproj_edge.geometry.creases import (
     CREASE_COS,
     CURVED_FIT,
     FIT,
+    KINK,
     ROUGH,
     RULED_CREASE_COS,
     RULED_FIT,
@@ -72,12 +74,17 @@ def decide(
     chord_dist: FloatArray,
     size: float,
     cloud: Cloud | None = None,
+    curved_side: bool = False,
+    near_kink: bool = True,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]] | None:
     """Triangle ``t``'s crease, from its corners' planes' normals (3, 3), its corners (3, 3),
     its probes' surface points (4, 3) and their distances to its chord plane (4,): the
     planes a (na, pa) and b (nb, pb), the softness and the corners of side b; None when
     it is not unfolded. ``cloud`` gives a side's surface points near the triangle (for
-    a straight crease with a curved side)."""
+    a straight crease with a curved side); ``curved_side``: a corner of the triangle
+    has no flat triangles (its side is curved: the sides' patches are tried first);
+    ``near_kink``: a triangle at its corners has a kink (the patches are tried only
+    there)."""
     groups = crease_groups(corner_normals)
     if groups is None:
         return None
@@ -93,26 +100,50 @@ def decide(
     chord = float(np.max(np.where(np.isfinite(chord_dist), chord_dist, 0.0)))
     rough = chord > ROUGH * size  # else only a sliver: it must be straight
     straight = FIT * (ROUGH if rough else SLIGHT) * size
-    if worst > straight and (not rough or worst > CURVED_FIT * chord):
-        if not rough or cloud is None or float(na @ nb) >= RULED_CREASE_COS:
-            return None
-        # a straight crease with a curved side: the sides' patches meet along it
-        d = np.cross(na, nb)
-        d /= np.linalg.norm(d)
-        origin = corner_points.mean(axis=0)
-        tol = RULED_FIT * size
-        patch_a = side_patch(cloud(group_a, na, nb), origin, na, tol)
-        patch_b = side_patch(cloud(group_b, nb, na), origin, nb, tol)
-        if patch_a is None or patch_b is None:
-            return None
-        met = crease_planes(patch_a, patch_b, origin, d, size, tol)
-        off = np.minimum(np.abs(patch_a.height(probe)[0]), np.abs(patch_b.height(probe)[0]))
-        if met is None or float(off.max()) > tol:
-            return None
-        na, pa, nb, pb = met
-        return na, pa, nb, pb, 0.0, group_b
+    explained = worst <= straight or (rough and worst <= CURVED_FIT * chord)
+    unexplained = rough and not explained
+    sharp = float(na @ nb) < RULED_CREASE_COS
+    if cloud is not None and near_kink and sharp and (curved_side or unexplained):
+        # a straight crease with a curved side: the sides' patches meet along it (where
+        # the corners' planes explain the triangle, a side's patch must be bent)
+        found = _ruled(probe, corner_points, size, cloud, groups, (na, nb), not unexplained)
+        if found is not None:
+            return found
+    if not explained:
+        return None
     softness = SOFTNESS * worst if worst > straight else 0.0
     return na, pa, nb, pb, softness, group_b
+
+
+def _ruled(
+    probe: FloatArray,
+    corner_points: FloatArray,
+    size: float,
+    cloud: Cloud,
+    groups: tuple[list[int], list[int]],
+    normals: tuple[FloatArray, FloatArray],
+    bent: bool,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]] | None:
+    """The ruled crease of :func:`decide`: its planes from the sides' patches, None
+    where they do not explain the triangle (or, with ``bent``, are both planes)."""
+    group_a, group_b = groups
+    na, nb = normals
+    d = np.cross(na, nb)
+    d /= np.linalg.norm(d)
+    origin = corner_points.mean(axis=0)
+    tol = RULED_FIT * size
+    patch_a = side_patch(cloud(group_a, na, nb), origin, na, tol)
+    patch_b = side_patch(cloud(group_b, nb, na), origin, nb, tol)
+    if patch_a is None or patch_b is None:
+        return None
+    if bent and not (np.any(patch_a.coef[3:] != 0) or np.any(patch_b.coef[3:] != 0)):
+        return None
+    met = crease_planes(patch_a, patch_b, origin, d, size, tol)
+    off = np.minimum(np.abs(patch_a.height(probe)[0]), np.abs(patch_b.height(probe)[0]))
+    if met is None or float(off.max()) > tol:
+        return None
+    na, pa, nb, pb = met
+    return na, pa, nb, pb, 0.0, group_b
 
 
 def unfold_reference(
@@ -126,13 +157,19 @@ def unfold_reference(
     dists: dict[int, FloatArray] = {}
     rough: set[int] = set()
     slight: set[int] = set()
+    kinked_vertices: set[int] = set()
     for t, (a, b, c) in enumerate(tris):
         p0, p1, p2 = points[a], points[b], points[c]
         n = -np.cross(p1 - p0, p2 - p0)  # facing the projector
         area2 = float(np.linalg.norm(n))
         sizes[t] = float(np.sqrt(area2))
         normals[t] = n / area2 if area2 > 0 else np.full(3, np.nan)
-        dists[t] = np.abs((probes[t] - p0) @ normals[t])
+        signed = (probes[t] - p0) @ normals[t]
+        dists[t] = np.abs(signed)
+        # a kink: the centroid's height is not 4/9 of the edge midpoints' (a quadratic's)
+        miss = abs(float(signed[3] - 4.0 / 9.0 * (signed[0] + signed[1] + signed[2])))
+        if miss > KINK * sizes[t]:
+            kinked_vertices.update(int(v) for v in (a, b, c))
         finite = dists[t][np.isfinite(dists[t])]
         if finite.size and float(finite.max()) > ROUGH * sizes[t]:
             rough.add(t)
@@ -159,24 +196,24 @@ def unfold_reference(
         cn = vertex_n[tris[t]]
         if any(float(cn[i] @ cn[0]) < CREASE_COS for i in (1, 2)):
             differ.add(t)
+    # a side's points: each vertex's flat triangles where it has any, else its smooth
+    # ones that are no crease candidates, else its other smooth ones
     flat_of: dict[int, list[int]] = {}
     smooth_of: dict[int, list[int]] = {}
+    other_of: dict[int, list[int]] = {}
     for t, corners in enumerate(tris):
         if t in rough or not np.all(np.isfinite(normals[t])):
             continue
-        if t not in slight:
-            for v in corners:
-                flat_of.setdefault(int(v), []).append(t)
-        elif t not in differ:
-            for v in corners:
-                smooth_of.setdefault(int(v), []).append(t)
+        kind = flat_of if t not in slight else smooth_of if t not in differ else other_of
+        for v in corners:
+            kind.setdefault(int(v), []).append(t)
 
     def cloud_of(t: int) -> Cloud:
         def cloud(ks: list[int], n_side: FloatArray, n_other: FloatArray) -> FloatArray:
             near: set[int] = set()
             for k in ks:
                 v = int(tris[t][k])
-                near.update(flat_of.get(v) or smooth_of.get(v) or [])
+                near.update(flat_of.get(v) or smooth_of.get(v) or other_of.get(v) or [])
             pts = [points[tris[t][k]] for k in ks]
             for u in sorted(near):
                 if abs(float(normals[u] @ n_side)) > abs(float(normals[u] @ n_other)):
@@ -190,7 +227,19 @@ def unfold_reference(
         corner_n = vertex_n[tris[t]]
         if not np.all(np.isfinite(corner_n)):
             continue
-        found = decide(t, corner_n, points[tris[t]], probes[t], dists[t], sizes[t], cloud_of(t))
+        curved_side = not all(bool(has_flat[v, 0]) for v in tris[t])
+        near_kink = any(int(v) in kinked_vertices for v in tris[t])
+        found = decide(
+            t,
+            corner_n,
+            points[tris[t]],
+            probes[t],
+            dists[t],
+            sizes[t],
+            cloud_of(t),
+            curved_side,
+            near_kink,
+        )
         if found is not None:
             out[t] = found
     return out
