@@ -177,6 +177,9 @@ def unfold_measured(
     acc = np.where(has_flat, acc, loose)
     with np.errstate(invalid="ignore", divide="ignore"):
         vn = acc / np.sqrt(dot_first(acc, acc))  # (3, N)
+    # a vertex all of whose triangles are rough (at the mesh's outline, where a crease
+    # meets it) takes the plane of the neighbour it lies nearest to
+    vn = _borrowed_planes(tris[seen_t], points, vn)
     # only triangles whose corners' planes differ can hold a crease (checked for all
     # rough triangles at once; the loop below then handles the few that remain)
     rough_t = np.flatnonzero(slight)
@@ -262,6 +265,8 @@ def unfold_measured(
             ~unexplained[retry],
         )
         straight[curved] = True
+        # (the ruled rule may regroup a corner: with the patch it lies on)
+        pair = np.sort(np.stack([(lone + 1) % 3, (lone + 2) % 3], axis=1), axis=1)
         curved_crease[curved] = False
     keep = np.any(seen, axis=1) & (straight | curved_crease)
     if not np.any(keep):
@@ -318,6 +323,27 @@ def _vertex_normals(
     for axis in range(3):
         acc[axis] = np.bincount(corners, np.repeat(weighted[axis], 3), minlength=n)
     return acc
+
+
+def _borrowed_planes(tris: IntArray, points: FloatArray, vn: FloatArray) -> FloatArray:
+    """The vertex planes' normals ``vn`` (3, N), where a vertex of ``tris`` (T, 3) has
+    none (NaN), the one of its neighbours (along the triangles' sides) whose plane it
+    lies nearest to, if any has one."""
+    lost = np.any(~np.isfinite(vn), axis=0)
+    if not np.any(lost[tris]):
+        return vn
+    v = np.concatenate([tris[:, 0], tris[:, 1], tris[:, 2], tris[:, 1], tris[:, 2], tris[:, 0]])
+    w = np.concatenate([tris[:, 1], tris[:, 2], tris[:, 0], tris[:, 0], tris[:, 1], tris[:, 2]])
+    use = lost[v] & ~lost[w]
+    v, w = v[use], w[use]
+    if v.size == 0:
+        return vn
+    off = np.abs(np.einsum("ij,ji->i", points[v] - points[w], vn[:, w]))
+    order = np.lexsort((off, v))  # by vertex, the nearest plane first
+    first = np.unique(v[order], return_index=True)[1]
+    out = vn.copy()
+    out[:, v[order][first]] = vn[:, w[order][first]]
+    return out
 
 
 def _nothing_folded(tri_pts: FloatArray) -> Unfolding:

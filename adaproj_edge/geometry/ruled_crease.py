@@ -238,10 +238,14 @@ def ruled_planes(
     :mod:`~adaproj_edge.geometry.creases`), those that are a straight crease between
     curved sides, explained to ``fit`` of their ``size``; their planes in ``planes``
     (na, pa, nb, pb: (C, 3) each) are replaced, in place, by the sides' tangent planes
-    at the crease. ``settled``: the flat triangles, the smooth ones that are no crease
+    at the crease, and ``lone`` / ``pair_a`` by the corners' sides: each corner's
+    patch is the one it lies on. ``settled``: the flat triangles, the smooth ones that are no crease
     candidates and the other smooth ones, whose corners and ``probes`` (3, 4, T) give a
     side its points (each vertex's first kind it has: a cone corner next to the crease
-    may have only smooth triangles whose corners' planes differ). ``bent`` (as
+    may have only smooth triangles whose corners' planes differ); where these do not
+    explain a candidate, it is tried again with every flat triangle and smooth one that
+    is no crease candidate within :data:`REACH` sizes of it (at the mesh's outline a
+    corner may have few, or none but rough ones). ``bent`` (as
     ``retry``): the candidate is taken only where a side's patch is bent (its corners'
     planes explain it already, but a side is curved). The candidates are tried in order
     until :data:`MISSES` of them (plus two per one found) were not such a crease, those
@@ -255,16 +259,23 @@ def ruled_planes(
         order = np.argsort(corner_of, kind="stable")
         starts = np.searchsorted(corner_of[order], np.arange(tris.max() + 2))
         tables.append((use[order // 3], starts))
+    # (the smooth triangles that are no crease candidates, and their centres)
+    pool = np.flatnonzero(settled[0] | settled[1])
+    pool_at = tri_pts[pool].mean(axis=1)
     found: list[int] = []
     misses = 0
     bent_misses = 0
-    for c, must_bend in zip(retry, bent, strict=True):
+    # (a candidate whose sides' corners' triangles do not explain it is tried again
+    # with every smooth triangle within reach: at the mesh's outline a corner has few,
+    # or none but rough ones)
+    queue = [(int(c), bool(b), False) for c, b in zip(retry, bent, strict=True)]
+    for c, must_bend, wide in queue:
         if misses >= MISSES + 2 * len(found):
             break
         if must_bend and bent_misses >= BENT_MISSES + 2 * len(found):
             continue
-        misses += 1  # (taken back below when it is found)
-        bent_misses += int(must_bend)
+        misses += 0 if wide else 1  # (taken back below when it is found)
+        bent_misses += int(must_bend and not wide)
         t = cand[c]
         d = np.cross(na[c], nb[c])
         d /= np.linalg.norm(d)
@@ -282,6 +293,9 @@ def ruled_planes(
                     if starts[v + 1] > starts[v]:
                         near.append(table[starts[v] : starts[v + 1]])
                         break
+            if wide:
+                gap = pool_at - origin
+                near = [pool[np.einsum("ij,ij->i", gap, gap) <= (REACH * size[t]) ** 2]]
             nbr = np.unique(np.concatenate(near)) if near else np.zeros(0, dtype=np.intp)
             nbr = nbr[np.abs(normals[:, nbr].T @ n_s) > np.abs(normals[:, nbr].T @ n_o)]
             cloud = np.concatenate(
@@ -296,6 +310,7 @@ def ruled_planes(
                 break
             patches.append(patch)
         if len(patches) < 2:
+            queue += [] if wide else [(c, must_bend, True)]
             continue
         ca, cb = patches
         if must_bend and not (np.any(ca.coef[3:] != 0.0) or np.any(cb.coef[3:] != 0.0)):
@@ -304,9 +319,20 @@ def ruled_planes(
         probe = probes[:, :, t].T
         probe = probe[np.isfinite(probe).all(axis=1)]
         resid = np.minimum(np.abs(ca.height(probe)[0]), np.abs(cb.height(probe)[0]))
+        # each corner goes with the patch it lies on (one a hair across the crease is
+        # left out of its side's fit, and grouped by its plane with the wrong side);
+        # with all on one patch the crease misses the triangle
+        ha, hb = np.abs(ca.height(tri_pts[t])[0]), np.abs(cb.height(tri_pts[t])[0])
+        in_b = np.isin(np.arange(3), side_b)
+        in_b = np.where((ha <= tol) & (hb <= tol), in_b, hb < ha)
         # (a triangle with no probe on the surface is not explained)
-        if met is None or resid.size == 0 or resid.max() > tol:
+        if met is None or resid.size == 0 or resid.max() > tol or in_b.all() or ~in_b.any():
+            queue += [] if wide else [(c, must_bend, True)]
             continue
+        if in_b[0]:  # (side a is the side of corner 0)
+            met, in_b = (met[2], met[3], met[0], met[1]), ~in_b
+        lone[c] = int(np.flatnonzero(in_b)[0]) if in_b.sum() == 1 else 0
+        pair_a[c] = lone[c] != 0
         na[c], pa[c], nb[c], pb[c] = met
         found.append(int(c))
         bent_misses -= int(must_bend)

@@ -28,11 +28,11 @@ from adaproj_edge.geometry.creases import (
     SLIGHT,
     SOFTNESS,
 )
-from adaproj_edge.geometry.ruled_crease import crease_planes, side_patch
+from adaproj_edge.geometry.ruled_crease import REACH, crease_planes, side_patch
 
 # a side's surface points near a crease triangle: (side's corners (k,), its planes'
-# normal, the other side's) -> (K, 3)
-Cloud = Callable[[list[int], FloatArray, FloatArray], FloatArray]
+# normal, the other side's, wide: every smooth triangle within reach) -> (K, 3)
+Cloud = Callable[[list[int], FloatArray, FloatArray, bool], FloatArray]
 
 
 def crease_groups(normals: FloatArray) -> tuple[list[int], list[int]] | None:
@@ -132,18 +132,34 @@ def _ruled(
     d /= np.linalg.norm(d)
     origin = corner_points.mean(axis=0)
     tol = RULED_FIT * size
-    patch_a = side_patch(cloud(group_a, na, nb), origin, na, tol)
-    patch_b = side_patch(cloud(group_b, nb, na), origin, nb, tol)
-    if patch_a is None or patch_b is None:
-        return None
-    if bent and not (np.any(patch_a.coef[3:] != 0) or np.any(patch_b.coef[3:] != 0)):
-        return None
-    met = crease_planes(patch_a, patch_b, origin, d, size, tol)
-    off = np.minimum(np.abs(patch_a.height(probe)[0]), np.abs(patch_b.height(probe)[0]))
-    if met is None or float(off.max()) > tol:
-        return None
-    na, pa, nb, pb = met
-    return na, pa, nb, pb, 0.0, group_b
+    # the sides' points from their corners' triangles, then (where those do not explain
+    # the triangle) from every smooth triangle within reach
+    for wide in (False, True):
+        patch_a = side_patch(cloud(group_a, na, nb, wide), origin, na, tol)
+        patch_b = side_patch(cloud(group_b, nb, na, wide), origin, nb, tol)
+        if patch_a is None or patch_b is None:
+            continue
+        if bent and not (np.any(patch_a.coef[3:] != 0) or np.any(patch_b.coef[3:] != 0)):
+            return None
+        met = crease_planes(patch_a, patch_b, origin, d, size, tol)
+        off = np.minimum(np.abs(patch_a.height(probe)[0]), np.abs(patch_b.height(probe)[0]))
+        if met is None or float(off.max()) > tol:
+            continue
+        # each corner goes with the patch it lies on (as its plane groups it where it
+        # lies on both); the crease must run between them
+        side_b = []
+        for k in range(3):
+            p = corner_points[k : k + 1]
+            h_a, h_b = abs(patch_a.height(p)[0][0]), abs(patch_b.height(p)[0][0])
+            if (k in group_b) if (h_a <= tol and h_b <= tol) else h_b < h_a:
+                side_b.append(k)
+        if len(side_b) in (0, 3):
+            continue
+        if 0 in side_b:  # side a is the side of corner 0
+            side_b = [k for k in range(3) if k not in side_b]
+            return met[2], met[3], met[0], met[1], 0.0, side_b
+        return met[0], met[1], met[2], met[3], 0.0, side_b
+    return None
 
 
 def unfold_reference(
@@ -187,6 +203,22 @@ def unfold_reference(
     vertex_sum = np.where(has_flat, flat_sum, smooth_sum)
     with np.errstate(invalid="ignore", divide="ignore"):
         vertex_n = vertex_sum / np.linalg.norm(vertex_sum, axis=1, keepdims=True)
+    # a vertex without a plane (all its triangles rough) takes the plane of the
+    # neighbour it lies nearest to
+    borrowed = vertex_n.copy()
+    for v in range(points.shape[0]):
+        if np.all(np.isfinite(vertex_n[v])):
+            continue
+        best = np.inf
+        for t, corners in enumerate(tris):
+            if v not in corners or not np.all(np.isfinite(normals[t])):
+                continue
+            for w in corners:
+                if w != v and np.all(np.isfinite(vertex_n[w])):
+                    off = abs(float((points[v] - points[w]) @ vertex_n[w]))
+                    if off < best:
+                        best, borrowed[v] = off, vertex_n[w]
+    vertex_n = borrowed
     out = {}
     if not rough:
         return out
@@ -201,19 +233,29 @@ def unfold_reference(
     flat_of: dict[int, list[int]] = {}
     smooth_of: dict[int, list[int]] = {}
     other_of: dict[int, list[int]] = {}
+    flat_t: list[int] = []  # (the flat triangles, the smooth ones no candidates)
+    smooth_t: list[int] = []
     for t, corners in enumerate(tris):
         if t in rough or not np.all(np.isfinite(normals[t])):
             continue
         kind = flat_of if t not in slight else smooth_of if t not in differ else other_of
+        (flat_t if t not in slight else smooth_t if t not in differ else []).append(t)
         for v in corners:
             kind.setdefault(int(v), []).append(t)
 
     def cloud_of(t: int) -> Cloud:
-        def cloud(ks: list[int], n_side: FloatArray, n_other: FloatArray) -> FloatArray:
+        def cloud(ks: list[int], n_side: FloatArray, n_other: FloatArray, wide: bool) -> FloatArray:
             near: set[int] = set()
             for k in ks:
                 v = int(tris[t][k])
                 near.update(flat_of.get(v) or smooth_of.get(v) or other_of.get(v) or [])
+            if wide:  # every flat one and smooth one no candidate within reach
+                centre = points[tris[t]].mean(axis=0)
+                near = set()
+                for u in flat_t + smooth_t:
+                    gap = points[tris[u]].mean(axis=0) - centre
+                    if float(gap @ gap) <= (REACH * sizes[t]) ** 2:
+                        near.add(u)
             pts = [points[tris[t][k]] for k in ks]
             for u in sorted(near):
                 if abs(float(normals[u] @ n_side)) > abs(float(normals[u] @ n_other)):

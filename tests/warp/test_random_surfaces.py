@@ -134,3 +134,19 @@ def test_a_cone_wall_s_crease_triangles_explained_by_their_corners_planes_are_ex
     case = draw_case(1, index)
     out = run_case(case)
     assert not out.failures, (case.describe(), out.failures)
+
+
+@pytest.mark.parametrize("index", [164])
+def test_a_cone_wall_s_crease_meeting_the_outline_is_exact(index: int) -> None:
+    """Seed 3: case 164 (conformal, 26x26 adaptive, a narrow far cone: angle 2.4e-4,
+    size 4.5e-4 before). Where the crease meets the mesh's outline (or the adaptive
+    grid's rows change) a crease triangle's cone side had few smooth triangles at its
+    corners, and a vertex all of whose triangles are rough had no plane at all: its
+    triangles were no candidates, or their cone patch missed a probe and they fell
+    back to their corners' planes. Now such a vertex takes the plane of the neighbour
+    it lies nearest to, and a candidate its sides' corners' triangles do not explain is
+    tried again with every smooth triangle within ``REACH`` (``geometry/creases.py``,
+    ``geometry/ruled_crease.py``)."""
+    case = draw_case(3, index)
+    out = run_case(case)
+    assert not out.failures, (case.describe(), out.failures)
