@@ -38,6 +38,12 @@ MISSES = 24
 # this many were not (a cylinder on a floor: every one of its crease's, ~0.8 ms each; a
 # cone wall's fail 0-12 times, among 10-60 found; seed 1 case 107 changes at 2)
 BENT_MISSES = 4
+# ... and a candidate tried again with a wider cloud (its first fit failed) until this
+# many such retries failed (plus two per crease found): all of a cone wall's retries
+# come after tens of its triangles were found (seed 3 cases 26, 164: 30 / 23 retries,
+# 92 / 118 found), while sensed depth with no crease retried every candidate (68 per
+# replay of tools/bench_app.py's session, none found)
+WIDE_MISSES = 2
 
 
 @dataclass(frozen=True)
@@ -265,6 +271,7 @@ def ruled_planes(
     found: list[int] = []
     misses = 0
     bent_misses = 0
+    wide_misses = 0
     # (a candidate whose sides' corners' triangles do not explain it is tried again
     # with every smooth triangle within reach: at the mesh's outline a corner has few,
     # or none but rough ones)
@@ -274,8 +281,11 @@ def ruled_planes(
             break
         if must_bend and bent_misses >= BENT_MISSES + 2 * len(found):
             continue
+        if wide and wide_misses >= WIDE_MISSES + 2 * len(found):
+            continue
         misses += 0 if wide else 1  # (taken back below when it is found)
         bent_misses += int(must_bend and not wide)
+        wide_misses += int(wide)
         t = cand[c]
         d = np.cross(na[c], nb[c])
         d /= np.linalg.norm(d)
@@ -336,5 +346,6 @@ def ruled_planes(
         na[c], pa[c], nb[c], pb[c] = met
         found.append(int(c))
         bent_misses -= int(must_bend)
+        wide_misses -= int(wide)
         misses -= 1
     return np.array(found, dtype=np.intp)
