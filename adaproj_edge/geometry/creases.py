@@ -326,24 +326,10 @@ def _vertex_normals(
 
 
 def _borrowed_planes(tris: IntArray, points: FloatArray, vn: FloatArray) -> FloatArray:
-    """The vertex planes' normals ``vn`` (3, N), where a vertex on the outline of
-    ``tris`` (T, 3) has none (NaN), the one of its neighbours (along the triangles'
-    sides) whose plane it lies nearest to, if any has one.
-
-    Inside the mesh a vertex without a plane is rough all round (sensed depth smoothed
-    across a jump: 80 more ruled-crease tries per replay of tools/bench_app.py's
-    session, none found); at the outline a crease can leave a corner no smooth triangle.
-    """
+    """The vertex planes' normals ``vn`` (3, N), where a vertex of ``tris`` (T, 3) has
+    none (NaN), the one of its neighbours (along the triangles' sides) whose plane it
+    lies nearest to, if any has one."""
     lost = np.any(~np.isfinite(vn), axis=0)
-    if not np.any(lost[tris]):
-        return vn
-    n = points.shape[0]
-    sides = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
-    key, count = np.unique(sides[:, 0].astype(np.int64) * n + sides[:, 1], return_counts=True)
-    rim = key[count == 1]  # the sides of one triangle only
-    outline = np.zeros(n, dtype=bool)
-    outline[rim // n] = outline[rim % n] = True
-    lost &= outline
     if not np.any(lost[tris]):
         return vn
     v = np.concatenate([tris[:, 0], tris[:, 1], tris[:, 2], tris[:, 1], tris[:, 2], tris[:, 0]])

@@ -203,18 +203,11 @@ def unfold_reference(
     vertex_sum = np.where(has_flat, flat_sum, smooth_sum)
     with np.errstate(invalid="ignore", divide="ignore"):
         vertex_n = vertex_sum / np.linalg.norm(vertex_sum, axis=1, keepdims=True)
-    # a vertex on the outline (a side of one seen triangle only) without a plane (all its
-    # triangles rough) takes the plane of the neighbour it lies nearest to
-    side_count: dict[tuple[int, int], int] = {}
-    for t, corners in enumerate(tris):
-        if np.all(np.isfinite(normals[t])):
-            for k in range(3):
-                a, b = sorted((int(corners[k]), int(corners[(k + 1) % 3])))
-                side_count[a, b] = side_count.get((a, b), 0) + 1
-    on_outline = {v for side, count in side_count.items() if count == 1 for v in side}
+    # a vertex without a plane (all its triangles rough) takes the plane of the
+    # neighbour it lies nearest to
     borrowed = vertex_n.copy()
     for v in range(points.shape[0]):
-        if np.all(np.isfinite(vertex_n[v])) or v not in on_outline:
+        if np.all(np.isfinite(vertex_n[v])):
             continue
         best = np.inf
         for t, corners in enumerate(tris):
