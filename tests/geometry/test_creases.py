@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.geometry.creases import (
+    Unfolding,
     _crease_groups,
     _pair_plane,
     crease_probes,
@@ -24,6 +25,8 @@ from adaproj_edge.geometry.creases import (
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import grid_triangles
 from tests.geometry.crease_reference import crease_groups, side_plane, unfold_reference
+
+Reference = dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]]]
 
 SURFACES = ("corner", "cylinder-floor", "cone-wall", "sphere-concave", "bumps")
 
@@ -50,6 +53,29 @@ def grid_mesh(
     return surface, tri_uv, tris, at(uv), at(crease_probes(tri_uv))
 
 
+def unfold_both(
+    surface: Surface, uv: FloatArray, tris: IntArray
+) -> tuple[Unfolding, Reference, FloatArray]:
+    """The product's unfolding of ``surface`` on the grid of vertices ``uv`` (n, 2) and
+    triangles ``tris``, the reference's, and the vertices' surface points."""
+    tri_uv = uv[tris]
+    points = surface.points_at(uv).astype(np.float64)
+    probes = surface.points_at(crease_probes(tri_uv)).astype(np.float64)
+    got = unfold_creases(surface, tri_uv, tris, points, probes)
+    return got, unfold_reference(tris, points, probes), points
+
+
+def assert_same_planes(got: Unfolding, want: Reference, atol: float) -> None:
+    """The same triangles unfolded, with the same planes and softness."""
+    assert set(np.flatnonzero(got.folded)) == set(want)
+    for t, (na, pa, nb, pb, softness, _) in want.items():
+        np.testing.assert_allclose(got.normal_a[t], na, atol=atol)
+        np.testing.assert_allclose(got.point_a[t], pa, atol=atol)
+        np.testing.assert_allclose(got.normal_b[t], nb, atol=atol)
+        np.testing.assert_allclose(got.point_b[t], pb, atol=atol)
+        assert got.softness[t] == pytest.approx(softness, abs=1e-12)
+
+
 @pytest.mark.parametrize("noise", [0.0, 0.0003, 0.003])
 @pytest.mark.parametrize("cells", [20, 40])
 @pytest.mark.parametrize("name", SURFACES)
@@ -57,13 +83,8 @@ def test_all_at_once_agrees_with_triangle_by_triangle(name: str, cells: int, noi
     surface, tri_uv, tris, points, probes = grid_mesh(name, cells, noise)
     got = unfold_creases(surface, tri_uv, tris, points, probes)
     want = unfold_reference(tris, points, probes)
-    assert set(np.flatnonzero(got.folded)) == set(want)
-    for t, (na, pa, nb, pb, softness, group_b) in want.items():
-        np.testing.assert_allclose(got.normal_a[t], na, atol=1e-12)
-        np.testing.assert_allclose(got.point_a[t], pa, atol=1e-12)
-        np.testing.assert_allclose(got.normal_b[t], nb, atol=1e-12)
-        np.testing.assert_allclose(got.point_b[t], pb, atol=1e-12)
-        assert got.softness[t] == pytest.approx(softness, abs=1e-12)
+    assert_same_planes(got, want, atol=1e-12)
+    for t, (*_, group_b) in want.items():
         side_a = [k for k in range(3) if k not in group_b]
         np.testing.assert_array_equal(got.points[t, side_a], points[tris[t, side_a]])
         moved = got.origin[t] + (points[tris[t, group_b]] - got.origin[t]) @ got.rotation[t].T
@@ -140,20 +161,9 @@ def test_a_straight_crease_with_a_curved_side_agrees_triangle_by_triangle() -> N
     case = draw_case(1, 101)
     surface = simulate_surface(case.surface)
     uv = case.grid.vertices(surface.projector).reshape(-1, 2)
-    tris = grid_triangles(case.grid.rows, case.grid.cols)
-    tri_uv = uv[tris]
-    points = surface.points_at(uv).astype(np.float64)
-    probes = surface.points_at(crease_probes(tri_uv)).astype(np.float64)
-    got = unfold_creases(surface, tri_uv, tris, points, probes)
-    want = unfold_reference(tris, points, probes)
-    assert set(np.flatnonzero(got.folded)) == set(want)
+    got, want, _ = unfold_both(surface, uv, grid_triangles(case.grid.rows, case.grid.cols))
+    assert_same_planes(got, want, atol=1e-9)
     assert len(want) >= 35  # 25 before the ruled rule, of the 42 the crease crosses
-    for t, (na, pa, nb, pb, softness, _) in want.items():
-        np.testing.assert_allclose(got.normal_a[t], na, atol=1e-9)
-        np.testing.assert_allclose(got.point_a[t], pa, atol=1e-9)
-        np.testing.assert_allclose(got.normal_b[t], nb, atol=1e-9)
-        np.testing.assert_allclose(got.point_b[t], pb, atol=1e-9)
-        assert got.softness[t] == pytest.approx(softness, abs=1e-12)
 
 
 def test_a_crease_meeting_the_mesh_s_outline_agrees_triangle_by_triangle() -> None:
@@ -173,18 +183,8 @@ def test_a_crease_meeting_the_mesh_s_outline_agrees_triangle_by_triangle() -> No
     surface = simulate_surface(case.surface)
     uv = warp.grid_uv.reshape(-1, 2).astype(np.float64)
     tris = grid_triangles(rows, cols)
-    tri_uv = uv[tris]
-    points = surface.points_at(uv).astype(np.float64)
-    probes = surface.points_at(crease_probes(tri_uv)).astype(np.float64)
-    got = unfold_creases(surface, tri_uv, tris, points, probes)
-    want = unfold_reference(tris, points, probes)
-    assert set(np.flatnonzero(got.folded)) == set(want)
-    for t, (na, pa, nb, pb, softness, _) in want.items():
-        np.testing.assert_allclose(got.normal_a[t], na, atol=1e-9)
-        np.testing.assert_allclose(got.point_a[t], pa, atol=1e-9)
-        np.testing.assert_allclose(got.normal_b[t], nb, atol=1e-9)
-        np.testing.assert_allclose(got.point_b[t], pb, atol=1e-9)
-        assert got.softness[t] == pytest.approx(softness, abs=1e-12)
+    got, want, points = unfold_both(surface, uv, tris)
+    assert_same_planes(got, want, atol=1e-9)
     side = case.surface.patch(np.nan_to_num(points))[tris]
     seen = np.isfinite(points).all(axis=1)[tris].all(axis=1)
     crossed = np.flatnonzero(seen & (side.min(axis=1) != side.max(axis=1)))
