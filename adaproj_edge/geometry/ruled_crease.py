@@ -293,6 +293,9 @@ def ruled_planes(
         origin = tri_pts[t].mean(axis=0)
         tol = fit * size[t]
         patches: list[SidePatch] = []
+        if wide:  # every smooth triangle within reach, for either side
+            gap = pool_at - origin
+            within = pool[np.einsum("ij,ij->i", gap, gap) <= (REACH * size[t]) ** 2]
         for n_s, n_o, ks in (
             (na[c], nb[c], [k for k in range(3) if k not in side_b]),
             (nb[c], na[c], side_b),
@@ -304,8 +307,7 @@ def ruled_planes(
                         near.append(table[starts[v] : starts[v + 1]])
                         break
             if wide:
-                gap = pool_at - origin
-                near = [pool[np.einsum("ij,ij->i", gap, gap) <= (REACH * size[t]) ** 2]]
+                near = [within]
             nbr = np.unique(np.concatenate(near)) if near else np.zeros(0, dtype=np.intp)
             nbr = nbr[np.abs(normals[:, nbr].T @ n_s) > np.abs(normals[:, nbr].T @ n_o)]
             cloud = np.concatenate(
