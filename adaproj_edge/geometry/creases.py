@@ -72,6 +72,8 @@ class Unfolding:
         ``origin + rotation @ (X - origin)``.
     softness : (T,) metres over which the side of a point is blended (0: a straight
         crease, the nearer plane's side).
+    ruled : (T,) bool, unfolded about a straight crease between curved sides (the
+        planes are the sides' patches' tangent planes there, not the corners').
     """
 
     points: FloatArray
@@ -83,6 +85,7 @@ class Unfolding:
     rotation: FloatArray
     origin: FloatArray
     softness: FloatArray
+    ruled: NDArray[np.bool_]
 
     def unfold_points(self, t: IntArray, X: FloatArray) -> FloatArray:
         """Unfold surface points ``X`` (..., 3) lying in triangles ``t`` (...).
@@ -146,10 +149,13 @@ def unfold_measured(
     normals: FloatArray,
     area2: FloatArray,
     probes: FloatArray,
+    may_rule: NDArray[np.bool_] | None = None,
 ) -> Unfolding:
     """:func:`unfold_creases` of triangles whose corners ``tri_pts`` (T, 3, 3), unit
     normals (3, T) and twice the areas (T,) (:func:`~adaproj_edge.geometry.triangles.
-    planes_first`) and surface at the probes (3, 4, T) (component-first) are known."""
+    planes_first`) and surface at the probes (3, 4, T) (component-first) are known.
+    ``may_rule`` (T,): where the sides' patches may be tried (a straight crease between
+    curved sides, :mod:`~adaproj_edge.geometry.ruled_crease`; None: everywhere)."""
     size = np.sqrt(area2)
     # the probes' distances (4, T) to their triangle's plane
     signed = (
@@ -242,6 +248,9 @@ def unfold_measured(
         # smoothed across a jump: rough, its corners' planes far apart, yet no crease)
         # holds no crease for the patches to find, and trying costs ~0.4 ms each
         retry = retry[_kinked(tris, signed, size, points.shape[0])[tris[cand[retry]]].any(axis=1)]
+    if retry.size and may_rule is not None:
+        retry = retry[may_rule[cand[retry]]]
+    ruled = np.zeros(cand.size, dtype=bool)
     if retry.size:
         excluded = np.zeros(tris.shape[0], dtype=bool)
         excluded[rough_t[differ]] = True
@@ -265,6 +274,7 @@ def unfold_measured(
             ~unexplained[retry],
         )
         straight[curved] = True
+        ruled[curved] = True
         # (the ruled rule may regroup a corner: with the patch it lies on)
         pair = np.sort(np.stack([(lone + 1) % 3, (lone + 2) % 3], axis=1), axis=1)
         curved_crease[curved] = False
@@ -284,6 +294,7 @@ def unfold_measured(
         np.broadcast_to(np.eye(3), (t_count, 3, 3)).copy(),
         np.zeros((t_count, 3)),
         np.zeros(t_count),
+        np.zeros(t_count, dtype=bool),
     )
     for c in np.flatnonzero(keep):  # few: the triangles a crease runs through
         t = cand[c]
@@ -294,6 +305,7 @@ def unfold_measured(
         unfolding.normal_a[t], unfolding.point_a[t] = na[c], pa[c]
         unfolding.normal_b[t], unfolding.point_b[t] = nb[c], pb[c]
         unfolding.rotation[t], unfolding.origin[t] = rot, origin
+        unfolding.ruled[t] = ruled[c]
         if not straight[c]:  # a curved crease: soften the side choice
             unfolding.softness[t] = SOFTNESS * worst[c]
     return unfolding
@@ -363,6 +375,7 @@ def _nothing_folded(tri_pts: FloatArray) -> Unfolding:
         rotation,
         np.zeros((t_count, 3)),
         np.zeros(t_count),
+        np.zeros(t_count, dtype=bool),
     )
 
 

@@ -9,6 +9,7 @@ solve changes can be interpolated back onto every fine vertex
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy import ndimage
 
 from adaproj_edge.arrays import FloatArray, IntArray
@@ -76,3 +77,20 @@ def upsample_field(
     along_rows = np.einsum("ir,rck->ick", Wr, values)
     out: FloatArray = np.einsum("ick,jc->ijk", along_rows, Wc)
     return out
+
+
+def coarse_cells_of(
+    fine_tris: IntArray, fine_cols: int, rows: IntArray, cols: IntArray
+) -> NDArray[np.bool_]:
+    """Which triangles of the coarse grid on fine vertex ``rows`` x ``cols`` (2 per
+    cell, :func:`~adaproj_edge.geometry.triangles.grid_triangles` order) lie in a coarse
+    cell holding, or next to one holding, one of the fine grid's triangles
+    ``fine_tris`` (indices in that order on a grid of ``fine_cols`` cells a row)."""
+    cell = np.asarray(fine_tris) // 2
+    r = np.searchsorted(rows, cell // fine_cols, side="right") - 1
+    c = np.searchsorted(cols, cell % fine_cols, side="right") - 1
+    near = np.zeros((rows.size - 1, cols.size - 1), dtype=bool)
+    inside = (r >= 0) & (r < near.shape[0]) & (c >= 0) & (c < near.shape[1])
+    near[r[inside], c[inside]] = True
+    near = ndimage.binary_dilation(near, structure=np.ones((3, 3), dtype=bool))
+    return np.repeat(near.ravel(), 2)

@@ -132,6 +132,8 @@ class MeshGeometry:
         only approximate: :mod:`~adaproj_edge.warp.adaptive` refines there).
     folded : (T,) bool, the triangles unfolded about a crease (straight or curved); the
         others' shapes are their own corners'.
+    ruled : (T,) bool, those of them unfolded about a straight crease between curved
+        sides (:mod:`~adaproj_edge.geometry.ruled_crease`).
     memo : what callers derive from this geometry alone, made once (:meth:`remember`;
         the upright angle's factors, the display's samples of
         :mod:`~adaproj_edge.warp.displayed`).
@@ -146,6 +148,7 @@ class MeshGeometry:
     shapes: FloatArray
     curved: NDArray[np.bool_]
     folded: NDArray[np.bool_]
+    ruled: NDArray[np.bool_]
     memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     def remember(self, name: str, make: Callable[[], T]) -> T:
@@ -221,11 +224,15 @@ class MeshGeometry:
         grid: Grid,
         cache: WarpCache | None = None,
         grid_uv: FloatArray | None = None,
+        may_rule: NDArray[np.bool_] | None = None,
     ) -> MeshGeometry:
         """Sample the surface at the grid and keep its largest connected piece.
 
         ``grid_uv`` (rows + 1, cols + 1, 2) places the vertices elsewhere than
-        :meth:`Grid.vertices` (a coarse grid on a subset of a fine grid's vertices)."""
+        :meth:`Grid.vertices` (a coarse grid on a subset of a fine grid's vertices).
+        ``may_rule`` (2 rows cols,) bool, per grid triangle: where a straight crease
+        between curved sides may be looked for (None: everywhere; see
+        :func:`~adaproj_edge.geometry.creases.unfold_measured`)."""
         if grid_uv is None:
             sampling = base_sampling(grid, surface)
             grid_uv = sampling.grid_uv
@@ -265,7 +272,13 @@ class MeshGeometry:
         topo = make() if cache is None else cache.topology(key, make)
         rows = topo.rows
         unfolding = unfold_measured(
-            topo.cand, pts, pts[topo.cand], normals[:, rows], area2[rows], probes[:, :, rows]
+            topo.cand,
+            pts,
+            pts[topo.cand],
+            normals[:, rows],
+            area2[rows],
+            probes[:, :, rows],
+            None if may_rule is None else may_rule[rows],
         )
         mine, mine_n = corners[:, :, rows], normals[:, rows]
         folded = np.flatnonzero(unfolding.folded)
@@ -280,7 +293,8 @@ class MeshGeometry:
         counts = np.bincount(topo.inverse, minlength=n_edges)
         curved = unfolding.folded & (unfolding.softness > 0)
         folded_t = np.asarray(unfolding.folded, dtype=bool)
-        return cls(grid, grid_uv, pts, topo, coords, sums / counts, shapes, curved, folded_t)
+        ruled = np.asarray(unfolding.ruled, dtype=bool)
+        return cls(grid, grid_uv, pts, topo, coords, sums / counts, shapes, curved, folded_t, ruled)
 
 
 def planar_shapes(tri_pts: FloatArray) -> FloatArray:

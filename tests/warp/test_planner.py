@@ -16,13 +16,15 @@ from adaproj_edge.geometry.analytic import DEVELOPABLE, NON_DEVELOPABLE, get_sur
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.render.frame import RemapMaps
 from adaproj_edge.render.maps import map_from_warp
-from adaproj_edge.warp.coarse import coarse_indices, upsample_field
+from adaproj_edge.warp.coarse import coarse_cells_of, coarse_indices, upsample_field
 from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.orientation import fold_count
 from adaproj_edge.warp.planner import PlanSettings, WarpPlanner, compute_warp
 from adaproj_edge.warp.warpmap import Grid, Warp
 from tests.distortion import Distortion, in_mask, measure, visible_fraction
 from tests.warp.conftest import CONTENT, subject_masks, surface
+from tests.warp.random_surfaces import draw_case, simulate_surface
 
 
 def test_coarse_indices_are_fine_vertices_with_both_ends() -> None:
@@ -46,6 +48,57 @@ def test_upsampling_reproduces_bilinear_fields_exactly() -> None:
     out = upsample_field(coarse, rows, cols, (10, 13))
     assert np.isfinite(out).all()
     assert np.allclose(out[rows[0], cols[0]], field[0, 0])
+
+
+def test_coarse_cells_of_fine_triangles_are_their_cells_and_neighbours() -> None:
+    rows, cols = np.array([0, 2, 5, 6, 9]), np.array([0, 3, 4, 8])  # fine: 9 x 8 cells
+    fine_cols = 8
+    rng = np.random.default_rng(4)
+    fine = rng.choice(2 * 9 * fine_cols, size=3, replace=False)
+    got = coarse_cells_of(fine, fine_cols, rows, cols)
+    assert got.shape == (2 * 4 * 3,)
+    # by hand: a coarse cell (i, j) spans fine rows rows[i]..rows[i + 1] - 1, likewise
+    # columns; a coarse triangle is marked when its cell or one of its 8 neighbours
+    # holds a marked fine triangle's cell
+    holds = np.zeros((4, 3), dtype=bool)
+    for t in fine:
+        r, c = divmod(int(t) // 2, fine_cols)
+        for i in range(4):
+            for j in range(3):
+                if rows[i] <= r < rows[i + 1] and cols[j] <= c < cols[j + 1]:
+                    holds[i, j] = True
+    for i in range(4):
+        for j in range(3):
+            want = holds[max(i - 1, 0) : i + 2, max(j - 1, 0) : j + 2].any()
+            assert got[2 * (3 * i + j)] == got[2 * (3 * i + j) + 1] == want, (i, j)
+    assert not coarse_cells_of(np.zeros(0, dtype=np.intp), fine_cols, rows, cols).any()
+
+
+@pytest.mark.parametrize(("seed", "index"), [(3, 51), (3, 159)])
+def test_the_coarse_mesh_finds_the_ruled_creases_next_to_the_fine_meshs(
+    seed: int, index: int
+) -> None:
+    # a cone wall meeting a plane along a ruling, diagonally through the grid: the
+    # device's coarse mesh looks for a straight crease between curved sides only next
+    # to those the fine mesh found, and finds there what it finds looking everywhere
+    case = draw_case(seed, index)
+    assert case.kind == "cone-wall"
+    sim = simulate_surface(case.surface)
+    planner = WarpPlanner(sim.projector, plan=PlanSettings(refine_factor=2))
+    settings = WarpSettings(mode="content", threshold=0.5)
+    cf = planner.content_free(sim, CONTENT, settings)
+    planner.refine(sim, ContentMap(subject_masks()["one-left"], CONTENT, 0.5), settings, cf)
+    ((grid_name, hinted),) = cf.refinement_meshes.items()
+    assert grid_name == "10x10" and cf.mesh.ruled.any() and hinted.ruled.any()
+    everywhere = MeshGeometry.build(sim, hinted.grid, None, hinted.grid_uv)
+    np.testing.assert_array_equal(hinted.topology.rows, everywhere.topology.rows)
+    np.testing.assert_array_equal(hinted.ruled, everywhere.ruled)
+    np.testing.assert_array_equal(hinted.folded, everywhere.folded)
+    np.testing.assert_allclose(hinted.shapes, everywhere.shapes, rtol=0, atol=1e-12)
+    # and nowhere, where it is told so
+    nowhere = np.zeros(2 * hinted.grid.rows * hinted.grid.cols, dtype=bool)
+    blind = MeshGeometry.build(sim, hinted.grid, None, hinted.grid_uv, nowhere)
+    assert not blind.ruled.any()
 
 
 def test_fold_count_sees_a_flipped_vertex() -> None:
