@@ -26,13 +26,18 @@ def test_the_bend_of_a_cylinder_is_its_cell_over_its_radius() -> None:
     s = surface("cylinder-concave")
     cyl = get_surface("cylinder-concave")
     grid_uv = Grid().vertices(s.projector)
-    bx, by = bends(s, grid_uv)
+    b = bends(s, grid_uv)
+    bx, by = b.x, b.y
     # the middle cell: its width on the surface from the analytic points at its corners
     pts = s.points_at(grid_uv[10, 10:12]).astype(np.float64)
     width = float(np.linalg.norm(pts[1] - pts[0]))
     r = cyl.r  # type: ignore[attr-defined]
     assert bx[10, 10] == pytest.approx(width / r, rel=0.1)
     assert by.max() < 1e-3  # straight along its axis
+    # its rulings run along the columns: the normal turns as the rows bend, and
+    # the cylinder bends one way only
+    assert b.turn_x[10, 10] == pytest.approx(bx[10, 10], rel=0.02)
+    assert b.turn_y.max() < 1e-3 and b.two_way.max() == 0.0
 
 
 def test_corrugations_split_the_columns_only() -> None:
