@@ -9,6 +9,22 @@ to 2e-4. A cell that bends one way only (a developable surface) is split down to
 :data:`BEND_ONE_WAY`: there this error is all the display has; one that bends both
 ways (a dome) to :data:`BEND`, as its own distortion is far larger.
 
+What spoils a triangle is its plane's tilt against the surface's, and that follows how
+far the normal turns across it - along its edges, the cell's diagonal among them - not
+only how far its rows and columns bend. The two agree where the grid runs along the
+surface's directions of curvature; where a cylinder's or a cone's rulings cross the
+grid at an angle ``a``, a column bends by ``kappa sin^2 a`` but its normal turns by
+``kappa |sin a|``, and along one diagonal the turns along x and along y add up. So on
+a developable surface (every cell bending one way only, whichever way its rulings run)
+a cell is also split until those two turns together are within
+:data:`BEND_ONE_WAY` (a wall meeting a cone rolled 19 deg: the cone's triangles turned
+up to 0.12 and showed 7.6e-4 in angle, exact vertices or not). A surface that bends
+both ways somewhere is split by its bends alone, as before: its own distortion dwarfs
+the chord's. Samples seen within 60 deg of grazing do not count for the turns: their
+second differences mix in the silhouette, and the lines they ask for run through the
+whole frame (a cone wall's, seed 3 case 0: rows split 8x for the cone's grazing edge,
+whose chord triangles then pulled the warp's solve 1.5 px off the exact development).
+
 :func:`refine_grid` measures ``kappa h`` along x and along y in every cell of
 the base grid, from the surface itself (second differences every :data:`SAMPLE`
 pixels, so relief a third of a cell wide is seen), and splits each column and each
@@ -27,7 +43,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -47,6 +63,10 @@ MAX_FACTOR = 8  # at most this many columns (rows) out of one
 CREASE_FACTOR = 4  # cells a curved crease crosses are split this many times both ways
 BUDGET = 7000  # vertices at most
 MIN_SPACING = 4  # pixels between two lines at least
+# the bend both ways (sqrt(|K|) h) below which a cell counts as bending one way only
+FLAT = 0.02
+GRAZING = 0.5  # the cosine between ray and normal below which a sample is seen grazing
+# (0.25: seed 3 case 0's size std 4.5e-4, 0.4: 2.0e-4, 0.5: 1.4e-4; 2.5e-4 before)
 QUICK = 0.9  # a quick look that sees no bend above this share of the least limit ends it
 
 
@@ -107,37 +127,64 @@ def _split(lines: FloatArray, factors: IntArray) -> FloatArray:
     return merged
 
 
+class Bends(NamedTuple):
+    """How the surface bends across each cell (:func:`bends`: (R, C) arrays, the worst
+    of the cell's samples, 0 where unknown) or per sample step (:func:`sampled_bends`).
+
+    ``x``, ``y``: ``kappa h`` along x and along y (the normal curvature along the
+    direction times the cell's size on the surface: how far its rows and columns bend).
+    ``turn_x``, ``turn_y``: the angle the normal turns across the cell along x and
+    along y - the same where x and y are the surface's directions of curvature, more
+    where they are not: a cylinder's or a cone's rulings at an angle ``a`` to the
+    columns bend a column by ``kappa sin^2 a`` per unit length but turn its normal by
+    ``kappa |sin a|``. ``two_way``: how far the surface bends both ways, ``|K| -
+    ONE_WAY k^2`` (``K`` the Gaussian curvature, ``k`` the greater principal curvature)
+    times the cell's area on the surface where positive: 0 where it bends one way only
+    (the lesser principal curvature below :data:`ONE_WAY` of the greater), whichever
+    way its rulings run in the image.
+    """
+
+    x: FloatArray
+    y: FloatArray
+    turn_x: FloatArray
+    turn_y: FloatArray
+    two_way: FloatArray
+
+
 def bends(
     surface: Surface, grid_uv: FloatArray, sample: float = SAMPLE, kinks: bool = False
-) -> tuple[FloatArray, FloatArray]:
-    """``kappa h`` along x and along y, the worst in each cell of the grid whose vertices
-    are ``grid_uv`` (R + 1, C + 1, 2): two (R, C) arrays (0 where unknown). From the
-    surface's nodes about ``sample`` pixels apart; a kink one or two samples wide (a
-    crease) counts only with ``kinks``."""
-    bx, by, xs, ys, step_x, step_y = sampled_bends(surface, sample, kinks)
+) -> Bends:
+    """The :class:`Bends` of each cell of the grid whose vertices are ``grid_uv``
+    (R + 1, C + 1, 2), the worst of its samples'. From the surface's nodes about
+    ``sample`` pixels apart; a kink one or two samples wide (a crease) counts only with
+    ``kinks``."""
+    per_sample, xs, ys, step_x, step_y = sampled_bends(surface, sample, kinks)
     cells = _cells(grid_uv[0, :, 0], grid_uv[:, 0, 1], xs, ys, step_x, step_y)
     n_rows, n_cols = cells.has.shape
-    if not bx.size:
-        return np.zeros((n_rows, n_cols)), np.zeros((n_rows, n_cols))
+    if not per_sample.x.size:
+        return Bends(*(np.zeros((n_rows, n_cols)) for _ in Bends._fields))
+    sx, sy = cells.size_x[None, :], cells.size_y[:, None]
+    scales = (sx, sy, sx, sy, sx * sy)
     out = []
-    for per in (bx * cells.size_x[None, :], by * cells.size_y[:, None]):
+    for per, scale in zip(per_sample, scales, strict=True):
         # samples of a cell are contiguous along both axes: a max per block (rows first,
         # then columns on the transpose: long runs, few calls), 0 where none; a last
         # row and column of zeros end the last blocks (the bends are >= 0)
         padded = np.zeros((per.shape[0] + 1, per.shape[1] + 1))
-        padded[:-1, :-1] = np.where(np.isfinite(per), per, 0.0)
+        padded[:-1, :-1] = np.where(np.isfinite(per), per * scale, 0.0)
         block = np.maximum.reduceat(padded, cells.row_start, axis=0)
         block = np.maximum.reduceat(block.T, cells.col_start, axis=0).T
         out.append(np.where(cells.has, block, 0.0))
-    return out[0], out[1]
+    return Bends(*out)
 
 
 def sampled_bends(
     surface: Surface, sample: float = SAMPLE, kinks: bool = False
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, float]:
-    """``kappa h`` per sample along x and along y (per sample step, before the cell's
-    size scales it), at the surface's inner nodes about ``sample`` pixels apart: the two
-    arrays, the samples' pixel columns and rows, and their spacing in pixels."""
+) -> tuple[Bends, FloatArray, FloatArray, float, float]:
+    """The :class:`Bends` per sample step (before a cell's size in samples scales them:
+    ``x``, ``turn_x`` by its width, ``y``, ``turn_y`` by its height, ``two_way`` by
+    both) at the surface's inner nodes about ``sample`` pixels apart, the samples'
+    pixel columns and rows, and their spacing in pixels."""
     # the surface's own nodes about `sample` pixels apart (no resampling: cheap)
     sx, sy = surface.lattice_scale()
     kx, ky = max(1, round(sample / sx)), max(1, round(sample / sy))
@@ -150,6 +197,7 @@ def sampled_bends(
     dy = (X[:, 2:, 1:-1] - X[:, :-2, 1:-1]) / 2
     ddx = X[:, 1:-1, 2:] - 2 * X[:, 1:-1, 1:-1] + X[:, 1:-1, :-2]
     ddy = X[:, 2:, 1:-1] - 2 * X[:, 1:-1, 1:-1] + X[:, :-2, 1:-1]
+    dxy = (X[:, 2:, 2:] - X[:, 2:, :-2] - X[:, :-2, 2:] + X[:, :-2, :-2]) / 4
     n = np.stack(
         [
             dx[1] * dy[2] - dx[2] * dy[1],
@@ -157,19 +205,53 @@ def sampled_bends(
             dx[0] * dy[1] - dx[1] * dy[0],
         ]
     )
-    with np.errstate(invalid="ignore", divide="ignore"):
-        length = np.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
-        # kappa h = |n . X_xx| / |X_x|^2 * (|X_x| * cell) = |n . X_xx| / |X_x| * cell
-        bx = np.abs(n[0] * ddx[0] + n[1] * ddx[1] + n[2] * ddx[2]) / (
-            length * np.sqrt(dx[0] ** 2 + dx[1] ** 2 + dx[2] ** 2)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        area = np.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)  # |X_x x X_y| = sqrt(E G - F^2)
+        # the second fundamental form L, M, N and the first E, F, G, per sample step
+        ell = (n[0] * ddx[0] + n[1] * ddx[1] + n[2] * ddx[2]) / area
+        m = (n[0] * dxy[0] + n[1] * dxy[1] + n[2] * dxy[2]) / area
+        en = (n[0] * ddy[0] + n[1] * ddy[1] + n[2] * ddy[2]) / area
+        e = dx[0] ** 2 + dx[1] ** 2 + dx[2] ** 2
+        f = dx[0] * dy[0] + dx[1] * dy[1] + dx[2] * dy[2]
+        g = dy[0] ** 2 + dy[1] ** 2 + dy[2] ** 2
+        # kappa h = |n . X_xx| / |X_x|^2 * (|X_x| * cell) = |L| / |X_x| * cell
+        bx = np.abs(ell) / np.sqrt(e)
+        by = np.abs(en) / np.sqrt(g)
+        # the normal's derivative along x is the tangent vector w with w . X_x = -L,
+        # w . X_y = -M (Weingarten); along y: -M, -N
+        tx = np.sqrt(np.maximum(ell * ell * g - 2 * ell * m * f + m * m * e, 0.0)) / area
+        ty = np.sqrt(np.maximum(m * m * g - 2 * m * en * f + en * en * e, 0.0)) / area
+        gauss = (ell * en - m * m) / area  # K |X_x x X_y|
+        mean = (ell * g - 2 * m * f + en * e) / (2 * area)  # H |X_x x X_y|
+        # k^2 |X_x x X_y|, k = |H| + sqrt(H^2 - K)
+        most = (np.abs(mean) + np.sqrt(np.maximum(mean * mean - gauss * area, 0.0))) ** 2 / area
+        two_way = np.maximum(np.abs(gauss) - ONE_WAY * most, 0.0)
+        # seen near grazing, the second differences mix in the silhouette: such a
+        # sample cannot tell whether the surface bends both ways, and its turns, huge
+        # per pixel, split only as its bends do (columns and rows split for it run
+        # through the whole frame)
+        c = X[:, 1:-1, 1:-1]
+        seen = np.abs(n[0] * c[0] + n[1] * c[1] + n[2] * c[2]) / (
+            area * np.sqrt(c[0] ** 2 + c[1] ** 2 + c[2] ** 2)
         )
-        by = np.abs(n[0] * ddy[0] + n[1] * ddy[1] + n[2] * ddy[2]) / (
-            length * np.sqrt(dy[0] ** 2 + dy[1] ** 2 + dy[2] ** 2)
-        )
+        grazing = seen < GRAZING
+        tx, ty = np.where(grazing, 0.0, tx), np.where(grazing, 0.0, ty)
+        two_way = np.where(grazing, 0.0, two_way)
     if not kinks:  # a crease is one or two samples wide: curvature bends over three
-        bx = np.pad(np.fmin(np.fmin(bx[:, :-2], bx[:, 1:-1]), bx[:, 2:]), ((0, 0), (1, 1)))
-        by = np.pad(np.fmin(np.fmin(by[:-2], by[1:-1]), by[2:]), ((1, 1), (0, 0)))
-    return bx, by, xs[1:-1], ys[1:-1], kx * sx, ky * sy
+        bx = np.pad(_least3(bx, 1), ((0, 0), (1, 1)))
+        by = np.pad(_least3(by, 0), ((1, 1), (0, 0)))
+        # the normal and the mixed derivative straddle a crease along the other axis too
+        tx, ty, two_way = (np.pad(_least3(_least3(a, 1), 0), 1) for a in (tx, ty, two_way))
+    return Bends(bx, by, tx, ty, two_way), xs[1:-1], ys[1:-1], kx * sx, ky * sy
+
+
+def _least3(a: FloatArray, axis: int) -> FloatArray:
+    """The least of three neighbours along ``axis`` (two fewer along it)."""
+    if axis == 1:
+        out: FloatArray = np.fmin(np.fmin(a[:, :-2], a[:, 1:-1]), a[:, 2:])
+    else:
+        out = np.fmin(np.fmin(a[:-2], a[1:-1]), a[2:])
+    return out
 
 
 @dataclass(frozen=True)
@@ -224,6 +306,52 @@ def _limits(bx: FloatArray, by: FloatArray) -> FloatArray:
     return out
 
 
+def _developable(b: Bends) -> NDArray[np.bool_]:
+    """Cells that bend one way only, wherever their rulings run: at every sample the
+    lesser principal curvature below :data:`ONE_WAY` of the greater, or both so small
+    over the cell that they do not count (``sqrt(two_way)`` below :data:`FLAT`)."""
+    out: NDArray[np.bool_] = b.two_way <= FLAT**2
+    return out
+
+
+def _exact(b: Bends) -> bool:
+    """Whether the display is to be exact: the surface bends one way only in every
+    cell (developable). Where some cell bends both ways, the warp's own distortion
+    there is far above the chord's, and a diagonal's turn adds nothing worth the lines."""
+    return bool(np.all(_developable(b)))
+
+
+def _excess(b: Bends) -> FloatArray:
+    """Each cell's bend as a share of its limit (above 1: it is split): ``kappa h``
+    along x and along y (:func:`_limits`), and where the surface is developable the
+    normal's turns along x and along y summed - along one of the cell's diagonals,
+    a triangle's edge, they add up - to :data:`BEND_ONE_WAY`."""
+    own: FloatArray = np.maximum(b.x, b.y) / _limits(b.x, b.y)
+    if not _exact(b):
+        return own
+    out: FloatArray = np.maximum(own, (b.turn_x + b.turn_y) / BEND_ONE_WAY)
+    return out
+
+
+def _needs(b: Bends) -> tuple[FloatArray, FloatArray]:
+    """How many columns and rows each cell needs for :func:`_excess` to be at most 1.
+    Where it is developable, the lesser turn is split to half the limit and the greater
+    to what that leaves (the fewest pieces ``fx fy`` with ``tx / fx + ty / fy`` within
+    it: ``tx / fx = ty / fy`` where both are split; a cell whose normal turns along x
+    only is split along x only, as by its bend)."""
+    limit = _limits(b.x, b.y)
+    own_x, own_y = np.ceil(b.x / limit), np.ceil(b.y / limit)
+    if not _exact(b):
+        return own_x, own_y
+    small, large = np.minimum(b.turn_x, b.turn_y), np.maximum(b.turn_x, b.turn_y)
+    f_small = np.maximum(1.0, np.ceil(2 * small / BEND_ONE_WAY))
+    f_large = np.ceil(large / (BEND_ONE_WAY - small / f_small))
+    x_small = b.turn_x <= b.turn_y
+    need_x = np.maximum(own_x, np.where(x_small, f_small, f_large))
+    need_y = np.maximum(own_y, np.where(x_small, f_large, f_small))
+    return need_x, need_y
+
+
 def refine_grid(
     surface: Surface,
     grid: Grid,
@@ -245,17 +373,15 @@ def refine_grid(
     if curved is None or curved.size == 0:
         # a quick look first, twice as sparse and creases included: a surface that is
         # smooth at the grid's scale needs no closer one
-        cx, cy = bends(surface, base, 2 * SAMPLE, kinks=True)
-        if np.all(np.maximum(cx, cy) < QUICK * _limits(cx, cy)):
+        if np.all(_excess(bends(surface, base, 2 * SAMPLE, kinks=True)) < QUICK):
             return none
-    bx, by = bends(surface, base)
+    need_x, need_y = _needs(bends(surface, base))
     flat = np.zeros(grid.rows * grid.cols)
     if curved is not None and curved.size:
         flat[curved] = 1.0
     creased = flat.reshape(grid.rows, grid.cols)
-    limit = _limits(bx, by)
-    need_x = np.maximum(np.ceil(bx / limit), CREASE_FACTOR * creased)
-    need_y = np.maximum(np.ceil(by / limit), CREASE_FACTOR * creased)
+    need_x = np.maximum(need_x, CREASE_FACTOR * creased)
+    need_y = np.maximum(need_y, CREASE_FACTOR * creased)
     # at most MAX_FACTOR, and no line closer than MIN_SPACING pixels to the next
     most_x = np.minimum(MAX_FACTOR, np.diff(base[0, :, 0]) // MIN_SPACING)
     most_y = np.minimum(MAX_FACTOR, np.diff(base[:, 0, 1]) // MIN_SPACING)

@@ -172,9 +172,10 @@ def test_a_crease_meeting_the_mesh_s_outline_agrees_triangle_by_triangle() -> No
     only rough triangles (it borrows a neighbour's plane), and crease triangles whose
     corners' smooth triangles are too few are fitted from every smooth one within
     reach; both readings agree, and every triangle the crease crosses but three is
-    unfolded (six missed before: now two near the top edge, where the crease clips a
+    unfolded (six missed before: then two near the top edge, where the crease clips a
     sliver of 0.8 % of their size, and one whose cone patch misses a probe by 1.8x the
-    fit)."""
+    fit; on the grid split by the normal's turn, 50x28 since, the two triangles of one
+    cell at rows 571-600 px)."""
     from tests.warp.random_surfaces import _warp, draw_case
 
     case = draw_case(3, 26)

@@ -267,19 +267,19 @@ def test_a_kept_sampling_serves_every_surface_of_the_lattice(seed: int, holes: f
 
 def plain_bends(
     surface: Surface, grid_uv: np.ndarray, sample: float, kinks: bool
-) -> tuple[np.ndarray, np.ndarray]:
-    """The per-sample ``kappa h`` (:func:`sampled_bends`), the worst in each cell, cell by
+) -> list[np.ndarray]:
+    """The per-sample bends (:func:`sampled_bends`), the worst in each cell, cell by
     cell."""
-    bx, by, xs, ys, step_x, step_y = sampled_bends(surface, sample, kinks)
+    per_sample, xs, ys, step_x, step_y = sampled_bends(surface, sample, kinks)
     cols, rows = grid_uv[0, :, 0], grid_uv[:, 0, 1]
     ci = np.clip(np.searchsorted(cols, xs, side="right") - 1, 0, cols.size - 2)
     ri = np.clip(np.searchsorted(rows, ys, side="right") - 1, 0, rows.size - 2)
+    wide = (np.diff(cols)[ci] / step_x)[None, :]
+    tall = (np.diff(rows)[ri] / step_y)[:, None]
+    scales = (wide, tall, wide, tall, wide * tall)  # x, y, turn_x, turn_y, two_way
     out = []
-    for per, scale in ((bx, np.diff(cols)[ci][None, :] / step_x), (by, None)):
-        if scale is None:
-            per = per * (np.diff(rows)[ri] / step_y)[:, None]
-        else:
-            per = per * scale
+    for per, scale in zip(per_sample, scales, strict=True):
+        per = per * scale
         per = np.where(np.isfinite(per), per, 0.0)
         worst = np.zeros((rows.size - 1, cols.size - 1))
         for r in range(rows.size - 1):
@@ -288,7 +288,7 @@ def plain_bends(
                 if block.size:
                     worst[r, c] = block.max()
         out.append(worst)
-    return out[0], out[1]
+    return out
 
 
 @settings(max_examples=30, deadline=None)
@@ -312,6 +312,7 @@ def test_bends_are_the_plain_worst_per_cell(
     got = bends(surface, grid_uv, sample, kinks)
     again = bends(surface, grid_uv, sample, kinks)  # the cells kept from the first call
     want = plain_bends(surface, grid_uv, sample, kinks)
+    assert len(got) == len(want) == 5
     for a, b, c in zip(got, again, want, strict=True):
         same(a, c)
         same(b, c)

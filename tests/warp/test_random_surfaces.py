@@ -150,3 +150,17 @@ def test_a_cone_wall_s_crease_meeting_the_outline_is_exact(index: int) -> None:
     case = draw_case(3, index)
     out = run_case(case)
     assert not out.failures, (case.describe(), out.failures)
+
+
+def test_a_cone_wall_whose_rulings_cross_the_grid_obliquely_is_exact() -> None:
+    """Seed 3 case 26 (content, 14x14 adaptive: a wall meeting a narrow far cone, rolled
+    19 deg; angle 3.7e-4, size 4.3e-4 before). The cone's rulings cross the columns
+    obliquely, so its normal turns along a column by ``kappa |sin a|`` while the column
+    bends by only ``kappa sin^2 a``: the adaptive grid, which split by the bend alone,
+    left cells whose triangles turned by up to 0.12 along their diagonals (the cone side
+    7.6e-4 in angle away from the crease, even with the exact development at the
+    vertices). Now a developable surface's cells are split by the normal's turn along
+    x, y and the diagonal (``warp/adaptive.py``)."""
+    case = draw_case(3, 26)
+    out = run_case(case)
+    assert not out.failures, (case.describe(), out.failures)
