@@ -335,7 +335,9 @@ class ComplexLeastSquares:
         rows = self.entry_rows[first:]
         contrib = self._adjoint[first - self._adjoint_first :] * const[rows]
         idx = self.entry_free[first:]
-        rhs = np.bincount(idx, contrib.real, self.nf) + 1j * np.bincount(idx, contrib.imag, self.nf)
+        rhs = np.empty(self.nf, dtype=np.complex128)
+        rhs.real = np.bincount(idx, contrib.real, self.nf)
+        rhs.imag = np.bincount(idx, contrib.imag, self.nf)
         if self.fixed_list.size:
             rhs -= self._coupling @ z_fixed[self.fixed_list]
         zs, info = _ZPBTRS(self._chol, rhs, lower=0, overwrite_b=1)
