@@ -228,15 +228,17 @@ class ComplexLeastSquares:
         self.entry_free = fc.reshape(-1)[self.entry_at]
         # rows that see a fixed unknown (a used coefficient that has no free index)
         fixed_entry = np.flatnonzero((fc < 0) & (self.cols < n))
-        self.fixed_rows = np.unique(fixed_entry // k)
+        fixed_rows = fixed_entry // k  # (sorted: its distinct values without a sort)
+        self.fixed_rows = fixed_rows[np.diff(fixed_rows, prepend=-1) != 0]
         # the coefficient pairs of each row (a <= b) that land in the band (both free),
         # in (row, pair) order: where they are among the (m, pairs) products, their row
-        # and their place in the band's storage
+        # and their place in the band's storage (fancy indexing along the rows and
+        # np.take of the kept ones: quicker than the reverse at these sizes)
         pair_a, pair_b = _pairs(k)
-        i = np.take(fc, pair_a, axis=1).reshape(-1)
-        j = np.take(fc, pair_b, axis=1).reshape(-1)
+        i = fc[:, pair_a].reshape(-1)
+        j = fc[:, pair_b].reshape(-1)
         used = np.flatnonzero(np.minimum(i, j) >= 0)
-        i, j = i[used], j[used]
+        i, j = np.take(i, used), np.take(j, used)
         lo, hi = np.minimum(i, j), np.maximum(i, j)
         gap = hi - lo
         self.band = band = int(gap.max()) if gap.size else 0
@@ -245,14 +247,15 @@ class ComplexLeastSquares:
         self.used = used  # flat indices of the (m, pairs) products
         self.used_rows = used // pair_a.size
         # a pair below the diagonal adds the conjugate of its product
-        self.used_sign = 1.0 - 2.0 * (i > j)
+        self.used_sign = np.where(i > j, -1.0, 1.0)
         # two coefficients of one unknown add twice the real part of their product
         # (only in rows that name an unknown twice: usually none)
         self.used_twice = np.zeros(0, dtype=np.intp)
-        off = [(a, b) for a, b in zip(pair_a.tolist(), pair_b.tolist(), strict=True) if a != b]
-        if any(np.any((fc[:, a] == fc[:, b]) & (fc[:, a] >= 0)) for a, b in off):
+        off = pair_a != pair_b
+        fa, fb = fc[:, pair_a[off]], fc[:, pair_b[off]]
+        if np.any((fa == fb) & (fa >= 0)):
             pair = used - self.used_rows * pair_a.size
-            self.used_twice = np.flatnonzero((i == j) & (pair_a != pair_b)[pair])
+            self.used_twice = np.flatnonzero((i == j) & off[pair])
         self.pair_a, self.pair_b = pair_a, pair_b
         # the coupling of the free unknowns to the fixed ones: per coefficient pair of a
         # fixed-seeing row, where its product lands in the (nf, n_fixed) matrix
