@@ -313,7 +313,7 @@ class _Nearby:
     def around(self, c: FloatArray, r: float, step: float) -> Segments:
         """The segments that can be nearest to points within ``step`` of ``c``
         (clearance ``r``)."""
-        a = self.anchor  # (the L-inf distance of two points in plain floats: quicker)
+        a = self.anchor  # (the L-inf distance by scalars: quicker than on 2-vectors)
         if max(abs(c[0] - a[0]), abs(c[1] - a[1])) + step > self.reach:
             reach = self.REACH * step
             keep = self.segs.distances(c[None, :])[0] <= r + 2.0 * reach
