@@ -34,6 +34,8 @@ frames from jumping between them.
 
 from __future__ import annotations
 
+import cmath
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -272,15 +274,21 @@ def _climb(
     Each evaluation runs over the boundary edges that can be the nearest ones to its
     trials (:class:`_Nearby`): the same values, so the same path, as over all of them."""
     nearby = _Nearby(segs)
-    reach = np.abs(pattern).max(axis=-1).ravel()  # each trial's L-inf offset per step
+    trials = pattern.reshape(-1, 2)
+    reach = np.abs(trials).max(axis=1)  # each trial's L-inf offset per step
+    widest = float(reach.max())
+    per_scale = pattern.shape[1]
     while step > tol:
-        trial = (c + step * pattern).reshape(-1, 2)
+        trial = trials * step
+        trial += c
         rt = nearby.around(c, r, step).clearance(trial)
-        rt[step * reach >= r] = -np.inf
-        k = int(np.argmax(rt))
-        if rt[k] > r:
-            c, r = trial[k], float(rt[k])
-            scale = k // pattern.shape[1]
+        if step * widest >= r:  # (else every trial is within the clearance)
+            rt[step * reach >= r] = -np.inf
+        k = int(rt.argmax())
+        best = float(rt[k])
+        if best > r:
+            c, r = trial[k], best
+            scale = k // per_scale
             step *= 2.0 if scale == 0 else _SCALES[scale]
         else:
             step *= _SCALES[-1] / 2
@@ -305,7 +313,8 @@ class _Nearby:
     def around(self, c: FloatArray, r: float, step: float) -> Segments:
         """The segments that can be nearest to points within ``step`` of ``c``
         (clearance ``r``)."""
-        if float(np.max(np.abs(c - self.anchor))) + step > self.reach:
+        a = self.anchor  # (the L-inf distance by scalars: quicker than on 2-vectors)
+        if max(abs(c[0] - a[0]), abs(c[1] - a[1])) + step > self.reach:
             reach = self.REACH * step
             keep = self.segs.distances(c[None, :])[0] <= r + 2.0 * reach
             if np.count_nonzero(keep) > self.SHARE * keep.size:
@@ -326,19 +335,18 @@ def side_directions(d: FloatArray, bins: int = 180) -> FloatArray:
     hist = np.bincount(k, weights=length, minlength=bins)
     ring = np.concatenate([hist[-1:], hist, hist[:1]])
     smooth = hist + ring[:-2] + ring[2:]  # each bin with its two neighbours
-    first = int(np.argmax(smooth))
-    half = bins // 2
+    first = int(smooth.argmax())
     apart = bins // 9  # the second peak's least distance from the first, in bins
     smooth[np.arange(first - apart + 1, first + apart) % bins] = -1.0
-    second = int(np.argmax(smooth))
-    # double the angles so that directions 180 degrees apart add up
-    z2 = length * np.exp(2j * angle)
+    second = int(smooth.argmax())
     out = np.empty((2, 2))
     for i, b in enumerate((first, second)):
-        near = np.abs((k - b + half) % bins - half) <= 1
-        z = complex(np.sum(z2[near]))
-        a = 0.5 * np.angle(z) if abs(z) > 0 else (b + 0.5) * np.pi / bins
-        out[i] = np.cos(a), np.sin(a)
+        # the peak's bins b - 1, b, b + 1 (modulo bins); doubled angles, so that
+        # directions 180 degrees apart add up
+        near = (k - (b - 1)) % bins <= 2
+        z = complex(np.sum(length[near] * np.exp(2j * angle[near])))
+        a = 0.5 * cmath.phase(z) if abs(z) > 0 else (b + 0.5) * math.pi / bins
+        out[i] = math.cos(a), math.sin(a)
     return out
 
 
@@ -356,16 +364,20 @@ def _centre(
     and the climb's steps), moving while it gets nearer; returns it and its clearance."""
     gap = float(np.linalg.norm(goal - c))
     step = gap
+    trials = pattern.reshape(-1, 2)
+    n = _SCALES.size
+    trial = np.empty((n + trials.shape[0], 2))  # toward the goal, then the pattern's
     while step > tol and gap > 0:
-        toward = c + np.minimum(_SCALES * step / gap, 1.0)[:, None] * (goal - c)
-        trial = np.concatenate([toward, (c + step * pattern).reshape(-1, 2)])
+        np.multiply(np.minimum(_SCALES * step / gap, 1.0)[:, None], goal - c, out=trial[:n])
+        np.multiply(trials, step, out=trial[n:])
+        trial += c
         rt = segs.clearance(trial)
         away = trial - goal
         away *= away
         gaps = np.where(rt >= least, np.sqrt(away[:, 0] + away[:, 1]), np.inf)
-        k = int(np.argmin(gaps))
+        k = int(gaps.argmin())
         if gaps[k] < gap:
-            c, r, gap = trial[k], float(rt[k]), float(gaps[k])
+            c, r, gap = trial[k].copy(), float(rt[k]), float(gaps[k])
         else:
             step *= 0.5
     return c, r

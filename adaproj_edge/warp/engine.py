@@ -219,7 +219,8 @@ def refine(
             if not unfolded(v_next, mesh.tris):
                 break  # keep the last fold-free iterate
         # the plain step's length: how far the iterate still is from the fixed point
-        motion = placement.scale * float(np.mean(np.linalg.norm(g - v, axis=1)))
+        d = g - v
+        motion = placement.scale * float(np.mean(np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])))
         v, placed = v_next, False
         iterations += 1
         if on_step is not None:

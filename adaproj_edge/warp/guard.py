@@ -255,13 +255,14 @@ def guard(
     """
     va, pa = aware
     vc, pc = conformal
-    m_aware = subject_distortion(mesh, pa.apply(va), content_map)
-    m_conf = subject_distortion(mesh, pc.apply(vc), content_map)
+    xy_aware, xy_conf = pa.apply(va), pc.apply(vc)  # (each placed once, used again below)
+    m_aware = subject_distortion(mesh, xy_aware, content_map)
+    m_conf = subject_distortion(mesh, xy_conf, content_map)
     meta: dict[str, Any] = {"aware": m_aware.as_dict(), "conformal": m_conf.as_dict()}
     if m_aware.weight <= 0 or m_conf.weight <= 0:
         meta.update(choice="content-aware", reason="no salient content shows", t=1.0)
         return Choice(va, pa, 1.0, meta)
-    judge = _Judge(mesh, content_map, pc.apply(vc), m_conf, surface, margin, meta)
+    judge = _Judge(mesh, content_map, xy_conf, m_conf, surface, margin, meta)
     # the candidates, least size spread first: (meta name, positions, placement, measure)
     candidates = [("content-aware", va, pa, m_aware)]
     # (a conformal warp without size spread leaves nothing to flatten: a developable
@@ -272,7 +273,7 @@ def guard(
         if flat is not None and flat[2].size < m_aware.size:
             candidates.insert(0, ("flattened", *flat))
     for name, v, p, m in candidates:
-        if judge.no_worse(p.apply(v), m, name):
+        if judge.no_worse(xy_aware if name == "content-aware" else p.apply(v), m, name):
             reason = "no worse in angle and size"
             if name == "flattened":
                 reason = "its size flattened over the subject, less size spread; " + reason

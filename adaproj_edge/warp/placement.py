@@ -37,8 +37,11 @@ class Placement:
 
     def apply(self, v: FloatArray) -> FloatArray:
         """Content positions (n, 2) of the solved positions ``v`` (n, 2)."""
-        c, s = np.cos(self.angle), np.sin(self.angle)
-        r = np.array([[c, -s], [s, c]])
+        r = self.__dict__.get("_rotation")
+        if r is None:  # made at the first call (a warp applies a placement many times)
+            c, s = np.cos(self.angle), np.sin(self.angle)
+            r = np.array([[c, -s], [s, c]])
+            object.__setattr__(self, "_rotation", r)
         out: FloatArray = self.scale * (v @ r.T) + self.offset
         return out
 

@@ -295,7 +295,7 @@ class ContentAwareSolver:
         z = v[:, 0] + 1j * v[:, 1]
         e = z[mesh.edges[:, 0]] - z[mesh.edges[:, 1]]
         length = np.abs(e)
-        if not np.all(length > 0):
+        if not length.min() > 0:  # (NaN: not > 0)
             raise WarpError("a mesh edge collapsed to a point")
         t0, t1 = self.sizes[0], self.sizes[0] + self.sizes[1]
         const = self._const

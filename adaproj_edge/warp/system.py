@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 import scipy.sparse
 import scipy.sparse.linalg
 from numpy.typing import NDArray
@@ -170,6 +171,14 @@ class BandedLeastSquares:
         return x
 
 
+# LAPACK's banded Cholesky of complex Hermitian matrices, called directly: what
+# scipy.linalg.cholesky_banded and cho_solve_banded call, without their checks and
+# wrapping (tens of microseconds a call; a warp factors three times and solves ten)
+_ZPBTRF, _ZPBTRS = scipy.linalg.lapack.get_lapack_funcs(
+    ("pbtrf", "pbtrs"), (np.zeros(1, dtype=np.complex128),)
+)
+
+
 @functools.lru_cache(maxsize=8)
 def _pairs(k: int) -> tuple[IntArray, IntArray]:
     """The index pairs (a <= b) of ``k`` coefficients (``np.triu_indices``, kept)."""
@@ -204,7 +213,7 @@ class ComplexLeastSquares:
         self.n = n
         self.fixed = fixed
         free_index = np.full(n + 1, -1, dtype=np.intp)
-        free = np.flatnonzero(~fixed)
+        self.free = free = np.flatnonzero(~fixed)
         free_index[free] = np.arange(free.size)
         self.nf = int(free.size)
         if self.nf == 0:
@@ -219,15 +228,17 @@ class ComplexLeastSquares:
         self.entry_free = fc.reshape(-1)[self.entry_at]
         # rows that see a fixed unknown (a used coefficient that has no free index)
         fixed_entry = np.flatnonzero((fc < 0) & (self.cols < n))
-        self.fixed_rows = np.unique(fixed_entry // k)
+        fixed_rows = fixed_entry // k  # (sorted: its distinct values without a sort)
+        self.fixed_rows = fixed_rows[np.diff(fixed_rows, prepend=-1) != 0]
         # the coefficient pairs of each row (a <= b) that land in the band (both free),
         # in (row, pair) order: where they are among the (m, pairs) products, their row
-        # and their place in the band's storage
+        # and their place in the band's storage (fancy indexing along the rows and
+        # np.take of the kept ones: quicker than the reverse at these sizes)
         pair_a, pair_b = _pairs(k)
-        i = np.take(fc, pair_a, axis=1).reshape(-1)
-        j = np.take(fc, pair_b, axis=1).reshape(-1)
+        i = fc[:, pair_a].reshape(-1)
+        j = fc[:, pair_b].reshape(-1)
         used = np.flatnonzero(np.minimum(i, j) >= 0)
-        i, j = i[used], j[used]
+        i, j = np.take(i, used), np.take(j, used)
         lo, hi = np.minimum(i, j), np.maximum(i, j)
         gap = hi - lo
         self.band = band = int(gap.max()) if gap.size else 0
@@ -236,14 +247,15 @@ class ComplexLeastSquares:
         self.used = used  # flat indices of the (m, pairs) products
         self.used_rows = used // pair_a.size
         # a pair below the diagonal adds the conjugate of its product
-        self.used_sign = 1.0 - 2.0 * (i > j)
+        self.used_sign = np.where(i > j, -1.0, 1.0)
         # two coefficients of one unknown add twice the real part of their product
         # (only in rows that name an unknown twice: usually none)
         self.used_twice = np.zeros(0, dtype=np.intp)
-        off = [(a, b) for a, b in zip(pair_a.tolist(), pair_b.tolist(), strict=True) if a != b]
-        if any(np.any((fc[:, a] == fc[:, b]) & (fc[:, a] >= 0)) for a, b in off):
+        off = pair_a != pair_b
+        fa, fb = fc[:, pair_a[off]], fc[:, pair_b[off]]
+        if np.any((fa == fb) & (fa >= 0)):
             pair = used - self.used_rows * pair_a.size
-            self.used_twice = np.flatnonzero((i == j) & (pair_a != pair_b)[pair])
+            self.used_twice = np.flatnonzero((i == j) & off[pair])
         self.pair_a, self.pair_b = pair_a, pair_b
         # the coupling of the free unknowns to the fixed ones: per coefficient pair of a
         # fixed-seeing row, where its product lands in the (nf, n_fixed) matrix
@@ -262,6 +274,7 @@ class ComplexLeastSquares:
         self._adjoint: NDArray[np.complex128] = np.zeros(0, dtype=np.complex128)
         self._adjoint_first = -1
         self._coupling: NDArray[np.complex128] = np.zeros((0, 0), dtype=np.complex128)
+        self._first: dict[int, int] = {}  # the first entry of a solve, by its zero_rows
 
     def factor(self, vals: NDArray[np.complex128], weights: FloatArray) -> None:
         """Factor ``A^H W A`` for coefficients ``vals`` (m, k) and row weights ``weights``
@@ -285,12 +298,10 @@ class ComplexLeastSquares:
         ab = np.empty(size, dtype=np.complex128)
         ab.real = np.bincount(self.used_flat, self._prod[0] * w, size)
         ab.imag = np.bincount(self.used_flat, self._prod[1] * w, size)
-        try:
-            self._chol = scipy.linalg.cholesky_banded(
-                ab.reshape(self.band + 1, self.nf), lower=False, check_finite=False
-            )
-        except np.linalg.LinAlgError:
-            raise WarpError("the warp system is singular (the mesh is disconnected?)") from None
+        chol, info = _ZPBTRF(ab.reshape(self.band + 1, self.nf), lower=0, overwrite_ab=1)
+        if info != 0:
+            raise WarpError("the warp system is singular (the mesh is disconnected?)")
+        self._chol = chol
         self._weights = np.array(weights, copy=True)
         self._adjoint_first = -1  # made at the first solve, for the rows it needs
         # (A_free^H W A_fixed): what the fixed unknowns' values take from the right side
@@ -315,7 +326,10 @@ class ComplexLeastSquares:
         if self._chol is None or self._vals is None or self._weights is None:
             raise WarpError("the warp system has not been factored")
         # the entries are in row order: those of the first zero_rows rows come first
-        first = int(np.searchsorted(self.entry_rows, zero_rows)) if zero_rows else 0
+        first = self._first.get(zero_rows)
+        if first is None:
+            first = int(np.searchsorted(self.entry_rows, zero_rows)) if zero_rows else 0
+            self._first[zero_rows] = first
         if not 0 <= self._adjoint_first <= first:
             # A^H W for the entries from ``first`` on (kept while later solves need no more)
             self._adjoint = np.conj(np.take(self._vals, self.entry_at[first:]))
@@ -324,12 +338,16 @@ class ComplexLeastSquares:
         rows = self.entry_rows[first:]
         contrib = self._adjoint[first - self._adjoint_first :] * const[rows]
         idx = self.entry_free[first:]
-        rhs = np.bincount(idx, contrib.real, self.nf) + 1j * np.bincount(idx, contrib.imag, self.nf)
+        rhs = np.empty(self.nf, dtype=np.complex128)
+        rhs.real = np.bincount(idx, contrib.real, self.nf)
+        rhs.imag = np.bincount(idx, contrib.imag, self.nf)
         if self.fixed_list.size:
             rhs -= self._coupling @ z_fixed[self.fixed_list]
-        zs = scipy.linalg.cho_solve_banded((self._chol, False), rhs, check_finite=False)
+        zs, info = _ZPBTRS(self._chol, rhs, lower=0, overwrite_b=1)
+        if info != 0:
+            raise WarpError("the warp solve failed")
         z = np.array(z_fixed, dtype=np.complex128, copy=True)
-        z[~self.fixed] = zs
-        if not np.all(np.isfinite(z)):
+        z[self.free] = zs
+        if not np.isfinite(z).all():
             raise WarpError("the warp solve produced non-finite values")
         return z

@@ -193,3 +193,89 @@ def test_region_inside_and_centroid() -> None:
     assert region.inside(np.array([2.0 + 1e-9, 4.0])) and region.inside(np.array([9.9, 0.1]))
     assert not region.inside(np.array([2.5, 5.5])) and not region.inside(np.array([10.1, 5.0]))
     assert region.inside(np.array([3.0, 5.5]))  # on the hole's edge: in a triangle
+
+
+def _plain_side_directions(d: np.ndarray, bins: int = 180) -> np.ndarray:
+    """The two dominant directions as first written: the whole histogram's doubled
+    angles, each peak's bins picked by their circular distance."""
+    dx, dy = d[:, 0], d[:, 1]
+    length = np.sqrt(dx * dx + dy * dy)
+    angle = np.mod(np.arctan2(dy, dx), np.pi)
+    k = np.minimum((angle / np.pi * bins).astype(np.intp), bins - 1)
+    hist = np.bincount(k, weights=length, minlength=bins)
+    ring = np.concatenate([hist[-1:], hist, hist[:1]])
+    smooth = hist + ring[:-2] + ring[2:]
+    first = int(np.argmax(smooth))
+    half, apart = bins // 2, bins // 9
+    smooth[np.arange(first - apart + 1, first + apart) % bins] = -1.0
+    second = int(np.argmax(smooth))
+    z2 = length * np.exp(2j * angle)
+    out = np.empty((2, 2))
+    for i, b in enumerate((first, second)):
+        near = np.abs((k - b + half) % bins - half) <= 1
+        z = complex(np.sum(z2[near]))
+        a = 0.5 * np.angle(z) if abs(z) > 0 else (b + 0.5) * np.pi / bins
+        out[i] = np.cos(a), np.sin(a)
+    return out
+
+
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**31), n=st.integers(1, 120), rounded=st.booleans())
+def test_side_directions_are_the_plain_ones(seed: int, n: int, rounded: bool) -> None:
+    # the placement's pattern steps along them: the same bits, so the same climb
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=(n, 2))
+    if rounded:  # directions on the bins' edges, repeated, axis-aligned
+        d = np.round(d, 1)
+        d[: n // 3, 1] = 0.0
+    assert np.array_equal(side_directions(d), _plain_side_directions(d))
+
+
+def _plain_centre(
+    c: np.ndarray,
+    r: float,
+    least: float,
+    goal: np.ndarray,
+    tol: float,
+    segments: Segments,
+    pattern: np.ndarray,
+) -> tuple[np.ndarray, float]:
+    """The centring's pattern search as documented, its trials made afresh each step."""
+    gap = float(np.linalg.norm(goal - c))
+    step = gap
+    while step > tol and gap > 0:
+        toward = c + np.minimum(rectangle._SCALES * step / gap, 1.0)[:, None] * (goal - c)
+        trial = np.concatenate([toward, (c + step * pattern).reshape(-1, 2)])
+        rt = segments.clearance(trial)
+        gaps = np.where(rt >= least, np.linalg.norm(trial - goal, axis=1), np.inf)
+        k = int(np.argmin(gaps))
+        if gaps[k] < gap:
+            c, r, gap = trial[k], float(rt[k]), float(gaps[k])
+        else:
+            step *= 0.5
+    return c, r
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31))
+def test_centring_takes_the_plain_path(seed: int) -> None:
+    v, tris = _jittered_region(seed)
+    edges = boundary_edges(tris)
+    segments = Segments(v[edges[:, 0]], v[edges[:, 1]])
+    region = rectangle._Triangles(np.ascontiguousarray(v.T), tris)
+    extent = float(np.max(np.ptp(v, axis=0)))
+    tol = rectangle.TOLERANCE * extent
+    pattern = (
+        rectangle._SCALES[:, None, None]
+        * np.concatenate([rectangle._DIRECTIONS, side_directions(v[edges[:, 1]] - v[edges[:, 0]])])[
+            None
+        ]
+    )
+    centres = v[tris].mean(axis=1)
+    c = centres[int(np.argmax(segments.clearance(centres)))]
+    c, r = rectangle._climb(c, float(segments.clearance(c)), 0.01 * extent, tol, segments, pattern)
+    goal = region.centroid()
+    got = rectangle._centre(c, r, (1 - NEAR) * r, goal, tol, segments, pattern)
+    want = _plain_centre(c, r, (1 - NEAR) * r, goal, tol, segments, pattern)
+    assert got[1] == want[1] and np.array_equal(got[0], want[0])
+    assert got[1] >= (1 - NEAR) * r

@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.warp import reference, solve
 from adaproj_edge.warp.anderson import Anderson
@@ -198,3 +199,13 @@ def test_the_paper_as_written_reference() -> None:
     # the content is the maximal inscribed rectangle: the warp covers all of it
     assert xy[:, 0].min() <= -0.5 + 1e-6 and xy[:, 0].max() >= 319.5 - 1e-6
     assert xy[:, 1].min() <= -0.5 + 1e-6 and xy[:, 1].max() >= 199.5 - 1e-6
+
+
+def test_a_singular_complex_system_is_a_warp_error() -> None:
+    # unknown 2 appears in no row: its normal equation is 0 = 0 (LAPACK's factorisation
+    # reports it, called directly)
+    cols = np.array([[0, 1], [1, -1], [0, -1]])
+    vals = np.array([[1.0, -1.0], [1.0, 0.0], [1.0, 0.0]], dtype=np.complex128)
+    system = ComplexLeastSquares(cols, 3, np.zeros(3, dtype=bool))
+    with pytest.raises(WarpError):
+        system.factor(vals, np.ones(3))
