@@ -9,6 +9,7 @@ maximal inscribed rectangle of the covered region (paper §4.1).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,14 +36,15 @@ class Placement:
         centre = None if self.centre is None else self.centre * k
         return Placement(self.angle, self.scale / k, self.offset, centre)
 
+    @cached_property
+    def _rotation(self) -> FloatArray:
+        """R(angle), made once (a warp applies its placement many times)."""
+        c, s = np.cos(self.angle), np.sin(self.angle)
+        return np.array([[c, -s], [s, c]])
+
     def apply(self, v: FloatArray) -> FloatArray:
         """Content positions (n, 2) of the solved positions ``v`` (n, 2)."""
-        r = self.__dict__.get("_rotation")
-        if r is None:  # made at the first call (a warp applies a placement many times)
-            c, s = np.cos(self.angle), np.sin(self.angle)
-            r = np.array([[c, -s], [s, c]])
-            object.__setattr__(self, "_rotation", r)
-        out: FloatArray = self.scale * (v @ r.T) + self.offset
+        out: FloatArray = self.scale * (v @ self._rotation.T) + self.offset
         return out
 
 
