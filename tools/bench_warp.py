@@ -33,6 +33,7 @@ import argparse
 import statistics
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -52,7 +53,6 @@ from adaproj_edge.warp.reference import REFERENCE
 from adaproj_edge.warp.warpmap import Grid, Warp
 
 CONTENT = (640, 400)
-CLOCK = time.perf_counter  # --cpu: time.thread_time
 
 
 def subject_mask(w: int, h: int) -> np.ndarray:
@@ -68,15 +68,17 @@ def timed(
     backend: Backend,
     repeat: int,
     cache: WarpCache | None = None,
+    clock: Callable[[], float] = time.perf_counter,
 ) -> tuple[float, Warp]:
-    """Median seconds to the result over ``repeat`` runs, and the last warp."""
+    """Median seconds (by ``clock``) to the result over ``repeat`` runs, and the last
+    warp."""
     mask = subject_mask(*CONTENT)
     times = []
     warp = None
     for _ in range(repeat):
-        t0 = CLOCK()
+        t0 = clock()
         warp = compute_warp(surface, CONTENT, mask, settings, backend, cache)
-        times.append(CLOCK() - t0)
+        times.append(clock() - t0)
     assert warp is not None
     return statistics.median(times), warp
 
@@ -99,11 +101,9 @@ def main() -> None:
     ap.add_argument("--no-new", action="store_true", help="skip the new surfaces")
     ap.add_argument("--cpu", action="store_true", help="CPU time of the thread, not wall")
     args = ap.parse_args()
-    global CLOCK
-    if args.cpu:
-        CLOCK = time.thread_time
-    clock = "CPU time" if args.cpu else "wall clock"
-    print(f"content {CONTENT[0]}x{CONTENT[1]}, mode content, off-centre subject, one core, {clock}")
+    clock = time.thread_time if args.cpu else time.perf_counter
+    what = "CPU time" if args.cpu else "wall clock"
+    print(f"content {CONTENT[0]}x{CONTENT[1]}, mode content, off-centre subject, one core, {what}")
     print(f"{'surface':15s} {'grid':>6} {'':>12} {'ms':>9} {'iters':>5}")
     for name in args.surfaces.split(","):
         surface = simulate_surface(name, step=2)
@@ -113,15 +113,15 @@ def main() -> None:
             paper = WarpSettings(mode="content", grid=grid, alternation="paper")
             compute_warp(surface, CONTENT, subject_mask(*CONTENT), ours)  # load code, libraries
             cache = WarpCache()
-            timed(surface, ours, FAST, 1, cache)  # the cache has seen the scene
+            timed(surface, ours, FAST, 1, cache, clock)  # the cache has seen the scene
             # interleaved, so that load from other jobs hits all three alike
             ref_t, cold_t, warm_t = [], [], []
             for _ in range(max(1, args.repeat // 2)):
-                t, ref_warp = timed(surface, paper, REFERENCE, 1)
+                t, ref_warp = timed(surface, paper, REFERENCE, 1, None, clock)
                 ref_t.append(t)
-                t, cold_warp = timed(surface, ours, FAST, 2)
+                t, cold_warp = timed(surface, ours, FAST, 2, None, clock)
                 cold_t.append(t)
-                t, warm_warp = timed(surface, ours, FAST, 2, cache)
+                t, warm_warp = timed(surface, ours, FAST, 2, cache, clock)
                 warm_t.append(t)
             ref, cold, warm = (statistics.median(x) for x in (ref_t, cold_t, warm_t))
             row(name, grid, "paper ref", ref, ref_warp)
@@ -139,7 +139,7 @@ def main() -> None:
         surface = simulate_surface(name, step=2)
         settings = WarpSettings(mode="content")
         compute_warp(surface, CONTENT, subject_mask(*CONTENT), settings)
-        seconds, warp = timed(surface, settings, FAST, max(1, args.repeat // 2))
+        seconds, warp = timed(surface, settings, FAST, max(1, args.repeat // 2), None, clock)
         shape = warp.grid_uv.shape
         print(
             f"{name:15s} {'20x20':>6} {'ours cold':>12} {1e3 * seconds:9.1f} "
