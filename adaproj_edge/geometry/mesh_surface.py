@@ -24,12 +24,19 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
+from adaproj_edge.extras import SIM, MissingExtraError
 from adaproj_edge.fileio import read_input
 from adaproj_edge.geometry.ray_triangle import intersect_brute_force
 
 log = logging.getLogger(__name__)
 
 MAX_TRIANGLES = 2_000_000
+
+BRUTE_FORCE_PAIRS_PER_S = 2e6
+"""Ray-triangle pairs the brute-force caster tests per second on one core (about)."""
+MAX_BRUTE_FORCE_PAIRS = 20_000_000
+"""The most rays x triangles one cast may test by brute force (about 10 s); a larger
+cast without the BVH (the ``sim`` extra) is refused with a line naming the extra."""
 
 
 @dataclass(frozen=True)
@@ -87,16 +94,32 @@ class MeshSurface:
 
             return MeshBvh(self.vertices, self.faces).cast
         except Exception as e:  # no warp-lang, or it cannot run here: cast by brute force
-            log.warning(
+            log.debug(
                 "mesh %s: no BVH ray caster (%s: %s); testing every ray against all %d "
-                "triangles instead, which is slow for large meshes: install the 'sim' extra "
-                "(pip install 'adaproj-edge[sim]')",
+                "triangles instead",
                 self.name,
                 type(e).__name__,
                 e,
                 len(self.faces),
             )
-            return functools.partial(intersect_brute_force, self.vertices, self.faces)
+            return functools.partial(_brute_force_within_budget, self.vertices, self.faces)
+
+
+def _brute_force_within_budget(
+    vertices: FloatArray, faces: NDArray[np.int64], origins: FloatArray, dirs: FloatArray
+) -> FloatArray:
+    """:func:`intersect_brute_force`, refused (:class:`MissingExtraError`, naming the
+    ``sim`` extra) when it would test more than :data:`MAX_BRUTE_FORCE_PAIRS` pairs."""
+    pairs = len(dirs) * len(faces)
+    if pairs > MAX_BRUTE_FORCE_PAIRS:
+        s = pairs / BRUTE_FORCE_PAIRS_PER_S
+        took = f"{s:.0f} s" if s < 120 else f"{s / 60:.0f} min" if s < 7200 else f"{s / 3600:.0f} h"
+        raise MissingExtraError(
+            SIM,
+            f"{len(dirs)} rays against {len(faces)} triangles by brute force would take "
+            f"about {took}",
+        )
+    return intersect_brute_force(vertices, faces, origins, dirs)
 
 
 # ---------------------------------------------------------------------------- files
