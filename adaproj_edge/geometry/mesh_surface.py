@@ -10,7 +10,6 @@ the projector frame at the start of the session).
 
 from __future__ import annotations
 
-import functools
 import logging
 import os
 import struct
@@ -94,32 +93,48 @@ class MeshSurface:
 
             return MeshBvh(self.vertices, self.faces).cast
         except Exception as e:  # no warp-lang, or it cannot run here: cast by brute force
-            log.debug(
-                "mesh %s: no BVH ray caster (%s: %s); testing every ray against all %d "
-                "triangles instead",
-                self.name,
-                type(e).__name__,
-                e,
-                len(self.faces),
+            return _BruteForce(self, f"{type(e).__name__}: {e}")
+
+
+class _BruteForce:
+    """:func:`intersect_brute_force` on one mesh, for want of the BVH: a cast that would
+    test more than :data:`MAX_BRUTE_FORCE_PAIRS` pairs is refused
+    (:class:`MissingExtraError`, naming the ``sim`` extra); the first one done warns."""
+
+    def __init__(self, mesh: MeshSurface, why: str) -> None:
+        self.mesh = mesh
+        self.why = why
+        self.warned = False
+
+    def __call__(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
+        faces = self.mesh.faces
+        pairs = len(dirs) * len(faces)
+        if pairs > MAX_BRUTE_FORCE_PAIRS:
+            s = pairs / BRUTE_FORCE_PAIRS_PER_S
+            took = (
+                f"{s:.0f} s"
+                if s < 120
+                else f"{s / 60:.0f} min"
+                if s < 7200
+                else f"{s / 3600:.0f} h"
             )
-            return functools.partial(_brute_force_within_budget, self.vertices, self.faces)
-
-
-def _brute_force_within_budget(
-    vertices: FloatArray, faces: NDArray[np.int64], origins: FloatArray, dirs: FloatArray
-) -> FloatArray:
-    """:func:`intersect_brute_force`, refused (:class:`MissingExtraError`, naming the
-    ``sim`` extra) when it would test more than :data:`MAX_BRUTE_FORCE_PAIRS` pairs."""
-    pairs = len(dirs) * len(faces)
-    if pairs > MAX_BRUTE_FORCE_PAIRS:
-        s = pairs / BRUTE_FORCE_PAIRS_PER_S
-        took = f"{s:.0f} s" if s < 120 else f"{s / 60:.0f} min" if s < 7200 else f"{s / 3600:.0f} h"
-        raise MissingExtraError(
-            SIM,
-            f"{len(dirs)} rays against {len(faces)} triangles by brute force would take "
-            f"about {took}",
-        )
-    return intersect_brute_force(vertices, faces, origins, dirs)
+            raise MissingExtraError(
+                SIM,
+                f"{len(dirs)} rays against {len(faces)} triangles by brute force would take "
+                f"about {took}",
+            )
+        if not self.warned:
+            self.warned = True
+            log.warning(
+                "mesh %s: no BVH ray caster (%s); testing every ray against all %d triangles "
+                "instead, which is slow for large meshes: install the 'sim' extra "
+                "(%s)",
+                self.mesh.name,
+                self.why,
+                len(faces),
+                SIM.install,
+            )
+        return intersect_brute_force(self.mesh.vertices, faces, origins, dirs)
 
 
 # ---------------------------------------------------------------------------- files
@@ -232,6 +247,11 @@ def _parse_ply(raw: bytes) -> tuple[FloatArray, NDArray[np.int64]]:
 
 def _xyz(props: list[list[str]], values: list[float]) -> list[float]:
     names = [p[-1] for p in props if p[0] != "list"]
+    missing = [k for k in ("x", "y", "z") if k not in names]
+    if missing:
+        raise ValueError(
+            f"its vertices have no {', '.join(missing)} (their properties: {', '.join(names)})"
+        )
     return [values[names.index(k)] for k in ("x", "y", "z")]
 
 

@@ -31,6 +31,8 @@ def without(monkeypatch: pytest.MonkeyPatch, module: str, *users: str) -> None:
     for name in users:
         if name in sys.modules:
             monkeypatch.delitem(sys.modules, name)
+            parent, _, child = name.rpartition(".")
+            monkeypatch.delattr(sys.modules[parent], child, raising=False)
 
 
 HOST_USERS = ("adaproj_edge.link.client", "adaproj_edge.link.connection")
