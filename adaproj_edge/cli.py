@@ -15,6 +15,7 @@ import os
 import sys
 from collections.abc import Collection, Sequence
 
+from adaproj_edge import __version__
 from adaproj_edge.errors import AdaprojError
 from adaproj_edge.extras import MissingExtraError, missing_extra
 from adaproj_edge.threads import apply_thread_policy, thread_report
@@ -49,6 +50,9 @@ def build_parser(selected: Collection[str] | None = None) -> argparse.ArgumentPa
         prog="adaproj", description="Content- and surface-aware projection."
     )
     parser.add_argument("-v", "--verbose", action="store_true", help="log more")
+    parser.add_argument(
+        "--version", action="version", version=f"adaproj {__version__}", help="say the version"
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in commands.MODULES:
         name = commands.command_name(module)
