@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         surface = simulate_surface(name)
         picture, plain, corrected = simulate(
-            surface, image, cmap, WarpSettings(mode="content"), DEFAULT_VIEWER
+            surface, image, cmap, WarpSettings(mode="content"), DEFAULT_VIEWER, name
         )
         write_png(args.out / f"{name}.png", picture)
         write_png(args.out / f"{name}-frame.png", corrected.frame)
