@@ -15,7 +15,9 @@ import os
 import sys
 from collections.abc import Collection, Sequence
 
+from adaproj_edge import __version__
 from adaproj_edge.errors import AdaprojError
+from adaproj_edge.extras import MissingExtraError, missing_extra
 from adaproj_edge.threads import apply_thread_policy, thread_report
 
 log = logging.getLogger("adaproj_edge.cli")
@@ -48,6 +50,9 @@ def build_parser(selected: Collection[str] | None = None) -> argparse.ArgumentPa
         prog="adaproj", description="Content- and surface-aware projection."
     )
     parser.add_argument("-v", "--verbose", action="store_true", help="log more")
+    parser.add_argument(
+        "--version", action="version", version=f"adaproj {__version__}", help="say the version"
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in commands.MODULES:
         name = commands.command_name(module)
@@ -98,8 +103,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(levelname)s %(name)s: %(message)s",
     )
     try:
-        rc = args.run(args)
+        try:
+            rc = args.run(args)
+        except ModuleNotFoundError as e:  # an optional part of the install: say which
+            missing = missing_extra(e)
+            if missing is None:
+                raise
+            raise missing from e
         sys.stdout.flush()  # a reader that went away shows here, not at exit
+    except MissingExtraError as e:
+        print(f"adaproj {args.command} needs {e}", file=sys.stderr)
+        return EXIT_ERROR
     except AdaprojError as e:
         print(f"adaproj {args.command}: error: {e}", file=sys.stderr)
         return EXIT_ERROR

@@ -211,6 +211,8 @@ class HandheldScorer:
         """Lit times (K,) ns, and the content points on the surface (K, P, 3) in
         millimetres, stabilised and off."""
         t = np.array([s.t_ns for s in self.scored], dtype=np.int64)
+        if len(t) == 0:  # nothing lit was scored (no content shown on the surface)
+            return t, np.zeros((0, 0, 3)), np.zeros((0, 0, 3))
         on = np.array([s.on for s in self.scored]) * 1e3
         off = np.array([s.off for s in self.scored]) * 1e3
         return t, on.reshape(len(t), -1, 3), off.reshape(len(t), -1, 3)

@@ -110,6 +110,13 @@ class ReplayOptions:
         return s
 
 
+def is_calibration_session(metadata: dict[str, dict[str, str]]) -> bool:
+    """Whether a session was recorded by ``adaproj calibrate`` or simulated by
+    ``adaproj simulate-calibration`` (its metadata says so)."""
+    session = metadata.get("session", {})
+    return session.get("kind") == "calibration" or session.get("command") == "calibrate"
+
+
 def session_faults(metadata: dict[str, dict[str, str]]) -> list[InjectedFault]:
     """The injected faults listed in a session's metadata."""
     raw = metadata.get("session", {}).get(FAULTS_KEY)
@@ -147,10 +154,15 @@ def replay_session(
     scan = Scan()
     for _ in iter_records(path, topics=set(), scan=scan):
         pass
+    if is_calibration_session(scan.metadata):
+        raise InputError(
+            f"{path} is a calibration session (patterns and captures, nothing projected): "
+            f"solve it with `adaproj calibrate --replay {path}`"
+        )
     faults = session_faults(scan.metadata)
     damage = scan.damage()
-    if damage is not None:
-        log.warning("%s: %s", path.name, damage)
+    if damage is not None:  # in the summary's session_file; `adaproj replay` says it
+        log.debug("%s: %s", path.name, damage)
     out_dir = Path(out) if out is not None else None
     if out_dir is not None:
         clear_outputs(out_dir)

@@ -14,7 +14,7 @@ import numpy as np
 
 from adaproj_edge.app.telemetry import Telemetry
 from adaproj_edge.arrays import Image
-from adaproj_edge.render.sheet import row, stack
+from adaproj_edge.render.sheet import row, stack, titled
 
 SAMPLE_FRAMES = 12
 
@@ -132,6 +132,16 @@ def clear_outputs(out: Path) -> None:
         (out / name).unlink(missing_ok=True)
 
 
+SHEET_LEGEND = (
+    "Frames the device projected, by seconds from the start. plain: no pre-warp;",
+    "content-free: warped for the surface alone; content-aware: refined for the content.",
+)
+SIDE_LEGEND = (
+    "Below, seen by a viewer beside the projector: a plain projector | what adaproj showed.",
+    "Grey: the surface where the frame is dark.",
+)
+
+
 def write_outputs(out: Path, summary: dict[str, Any], frames: FrameSampler) -> None:
     """Write ``summary.json``, the sampled frames (``frames/``) and
     ``contact_sheet.png`` into ``out``."""
@@ -144,8 +154,9 @@ def write_outputs(out: Path, summary: dict[str, Any], frames: FrameSampler) -> N
         row([p[3] for p in picked[i : i + 4]], [p[4] for p in picked[i : i + 4]], 200)
         for i in range(0, len(picked), 4)
     ]
-    rows += [row(images, captions, 300) for images, captions in frames.side_views]
-    if rows:
-        cv2.imwrite(str(out / "contact_sheet.png"), stack(rows))
+    side = [row(images, captions, 300) for images, captions in frames.side_views]
+    legend = (SHEET_LEGEND if rows else ()) + (SIDE_LEGEND if side else ())
+    if rows or side:
+        cv2.imwrite(str(out / "contact_sheet.png"), titled(stack(rows + side), legend))
     if frames.handheld_plot is not None:
         cv2.imwrite(str(out / "handheld.png"), frames.handheld_plot)

@@ -29,6 +29,7 @@ MODULES: tuple[str, ...] = (
     "simulate",
     "surface",
     "run",
+    "doctor",
     "replay",
     "video",
     "calibrate",

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -96,7 +98,7 @@ def load_maps(
 
     h, w = image.shape[:2]
     mask = None if mask_path is None else load_mask(mask_path, (w, h))
-    given = None if map_path is None else load_mask(map_path, (w, h))
+    given = None if map_path is None else load_mask(map_path, (w, h), kind="content map")
     return mask, given
 
 
@@ -104,18 +106,24 @@ def grid_arg(text: str) -> Grid:
     """Parse ``--grid 20x20`` (the argparse type): columns x rows of cells, enough of
     them for the warp's mesh (checked here, before any work)."""
     from adaproj_edge.warp.mesh import MIN_TRIANGLES
-    from adaproj_edge.warp.warpmap import Grid
+    from adaproj_edge.warp.warpmap import MAX_GRID, Grid
 
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    if m is not None:
+        cols, rows = int(m[1]), int(m[2])
+        if 2 * cols * rows < MIN_TRIANGLES:  # two triangles per cell
+            raise argparse.ArgumentTypeError(
+                f"grid {cols}x{rows} has {2 * cols * rows} triangles; the warp needs at "
+                f"least {MIN_TRIANGLES} (e.g. 2x2)"
+            )
+        if max(cols, rows) > MAX_GRID:
+            raise argparse.ArgumentTypeError(
+                f"grid {cols}x{rows} is too fine: at most {MAX_GRID}x{MAX_GRID} cells"
+            )
     try:
-        grid = Grid.parse(text)
+        return Grid.parse(text)
     except InputError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
-    if 2 * grid.cols * grid.rows < MIN_TRIANGLES:  # two triangles per cell
-        raise argparse.ArgumentTypeError(
-            f"grid {grid} has {2 * grid.cols * grid.rows} triangles; the warp needs at "
-            f"least {MIN_TRIANGLES} (e.g. 2x2)"
-        )
-    return grid
 
 
 def vector_arg(text: str) -> tuple[float, float, float]:
@@ -124,6 +132,8 @@ def vector_arg(text: str) -> tuple[float, float, float]:
         x, y, z = (float(t) for t in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected X,Y,Z in metres, got {text!r}") from None
+    if not all(math.isfinite(v) for v in (x, y, z)):
+        raise argparse.ArgumentTypeError(f"expected finite X,Y,Z in metres, got {text!r}")
     return x, y, z
 
 

@@ -19,6 +19,9 @@ if TYPE_CHECKING:  # the rest is imported when the command runs (--help stays li
 
 log = logging.getLogger(__name__)
 
+MAX_POSES = 8
+"""Poses captured at most by default (``ProcedureSettings.max_poses``)."""
+
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
     p = sub.add_parser(
@@ -63,7 +66,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         metavar="FILE.toml",
         help="starting guess (default: the calibration `adaproj run` would use)",
     )
-    p.add_argument("--max-poses", type=int, default=8, help="stop after this many poses")
+    p.add_argument(
+        "--max-poses",
+        type=int,
+        default=None,
+        help=f"stop after this many poses (default {MAX_POSES}; live capture only: a replay "
+        "solves the poses its session recorded)",
+    )
     p.set_defaults(run=run)
 
 
@@ -137,18 +146,23 @@ def run(args: argparse.Namespace) -> int:
     from adaproj_edge.procam.session_devices import recorded_capture
 
     closing: list[Any] = []
+    if args.max_poses is not None and args.max_poses < 1:
+        raise CalibrationError(f"--max-poses must be at least 1, got {args.max_poses}")
     if args.replay is not None and args.record is not None:
         raise CalibrationError("--record records the device; it cannot go with --replay")
+    if args.replay is not None and args.max_poses is not None:
+        raise CalibrationError(
+            "--max-poses limits the live capture; a replay solves the poses its session recorded"
+        )
     if args.replay is not None:
         rc = recorded_capture(args.replay)
         settings = rc.settings
         devices, camera, nominal, console = rc.devices, rc.camera, rc.nominal, Console()
     else:
-        if args.max_poses < 1:
-            raise CalibrationError("--max-poses must be at least 1")
+        max_poses = MAX_POSES if args.max_poses is None else args.max_poses
         settings = ProcedureSettings(
-            max_poses=args.max_poses,
-            plan=PlanSettings(min_poses=min(PlanSettings().min_poses, args.max_poses)),
+            max_poses=max_poses,
+            plan=PlanSettings(min_poses=min(PlanSettings().min_poses, max_poses)),
         )
         devices, camera, nominal, console, closing = _live(args, settings)
     try:

@@ -24,11 +24,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         description="Project the built-in poster onto built-in surfaces, plainly and "
         "corrected (content mode, the saliency model max the poster's subject mask), and "
         "show both as a viewer 0.8 m to the side sees them. Writes, in the folder, "
-        "demo.png (input | standard projector | adaproj, a row per surface), per surface "
+        "demo.png (input | standard projector | adaproj, a row per surface), the poster as "
+        "input.png, per surface "
         "NAME.png, NAME-frame.png (the projector frame) and NAME-warp.npz, and "
         "summary.json (the distortion of both, overall and over the subject).",
     )
-    p.add_argument("--out", type=Path, default=Path("out"), help="folder (default: out/)")
+    p.add_argument("--out", type=Path, default=Path("out/demo"), help="folder (default: out/demo/)")
     p.add_argument(
         "--surfaces",
         default=",".join(DEMO_SURFACES),
@@ -65,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         surface = simulate_surface(name)
         picture, plain, corrected = simulate(
-            surface, image, cmap, WarpSettings(mode="content"), DEFAULT_VIEWER
+            surface, image, cmap, WarpSettings(mode="content"), DEFAULT_VIEWER, name
         )
         write_png(args.out / f"{name}.png", picture)
         write_png(args.out / f"{name}-frame.png", corrected.frame)
@@ -84,5 +85,5 @@ def run(args: argparse.Namespace) -> int:
         print(f"  [{k}/{len(names)}] {name} done in {summary[name]['seconds']} s")
     write_png(args.out / "demo.png", stack(rows))
     atomic_write_bytes(args.out / "summary.json", json.dumps(summary, indent=1).encode())
-    print(f"wrote {args.out}/demo.png (input | standard | corrected, seen from the side)")
+    print(f"wrote {args.out / 'demo.png'} (input | standard | corrected, seen from the side)")
     return 0

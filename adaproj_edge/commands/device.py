@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from adaproj_edge.commands._outputs import check_output_file
 from adaproj_edge.commands.push import (
     ProgressBar,
     add_port,
@@ -48,7 +49,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     a.add_argument("name", help="item on the device")
     add_port(a)
     a = acts.add_parser("screenshot", help="save the frame shown now as PNG")
-    a.add_argument("out", type=Path, help="where to write the PNG")
+    a.add_argument("out", type=Path, nargs="?", help="where to write the PNG")
+    a.add_argument("--out", type=Path, dest="out_option", metavar="OUT", help="the same")
     add_port(a)
     p.set_defaults(run=run)
 
@@ -78,7 +80,19 @@ def item_lines(listed: Any) -> list[str]:
     return lines
 
 
+def screenshot_path(args: argparse.Namespace) -> Path:
+    """Where ``device screenshot`` writes: the path given as an argument or with --out."""
+    given = [p for p in (args.out, args.out_option) if p is not None]
+    if len(given) != 1:
+        raise InputError(
+            "screenshot: give one PNG file to write, e.g. `adaproj device screenshot shot.png`"
+        )
+    return check_output_file(given[0], "screenshot", (".png",))
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.action == "screenshot":
+        args.out = screenshot_path(args)
     from adaproj_edge.link import client
     from adaproj_edge.link.host_requests import ListRead, StatusRead
 

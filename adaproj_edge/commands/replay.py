@@ -113,14 +113,13 @@ def run(args: argparse.Namespace) -> int:
             + (f", drift {h['drift_mm_10s']} mm over 10 s" if h.get("drift_mm_10s") else "")
         )
     damage = s["session_file"]["damage"]
-    if damage is not None:
+    if damage is not None:  # (replay_session logs it at debug level only: said once, here)
         print(f"adaproj replay: warning: {Path(args.session).name}: {damage}", file=sys.stderr)
     if args.out:
-        extra = ", handheld.png" if (Path(args.out) / "handheld.png").exists() else ""
-        print(
-            f"wrote {args.out}/summary.json, {args.out}/contact_sheet.png{extra}, "
-            f"{args.out}/frames/"
-        )
+        out = Path(args.out)
+        written = ["summary.json", "contact_sheet.png", "handheld.png", "frames"]
+        there = [str(out / name) for name in written if (out / name).exists()]
+        print(f"wrote {', '.join(there)}")
     else:
         log.debug("%s", json.dumps(s["counters"]))
     return 0

@@ -18,6 +18,9 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
+EXIT_MISSING = 1
+"""``--check``'s exit status when a device file is missing."""
+
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
     p = sub.add_parser(
@@ -27,7 +30,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "capture the surface and project, double press for the next content item, long "
         "press to toggle content-aware / plain projection. Content and settings arrive "
         "over the USB serial link. With --check: load the board and its calibration, "
-        "say which device files are there, and stop (opens nothing).",
+        "say which device files are there, and stop (opens nothing; exit status 1 when one is "
+        "missing: `adaproj doctor` checks each device and says what to do).",
     )
     p.add_argument("--board", default="rpi5-oakd", help="board name or board TOML file")
     p.add_argument(
@@ -58,7 +62,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument(
         "--check",
         action="store_true",
-        help="start-up checks only: load the board and calibration, list the devices, exit",
+        help="start-up checks only: load the board and calibration, list the devices, exit "
+        "(1 when one is missing)",
     )
     p.set_defaults(run=run)
 
@@ -97,8 +102,13 @@ def run(args: argparse.Namespace) -> int:
     board = Board.load(args.board)
     board = board.with_calibration(calibration_in_use(board, args.calibration))
     if args.check:
-        for line in check(board):
+        lines = check(board)
+        for line in lines:
             print(line)
+        missing = sum(line.endswith(" missing") for line in lines)
+        if missing:
+            print(f"{missing} device(s) missing: `adaproj doctor` says what to do")
+            return EXIT_MISSING
         return 0
     log.info("calibration: %s", board.calibration_path)
     board.calibration()  # a bad file is refused before the devices start

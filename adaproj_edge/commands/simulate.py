@@ -66,10 +66,12 @@ def simulate(
     cmap: ContentMap | None,
     settings: WarpSettings,
     eye: tuple[float, float, float],
+    name: str = "the surface",
 ) -> tuple[NDArray[np.uint8], Projection, Projection]:
-    """The picture input | standard | corrected, and the two projections."""
+    """The picture input | standard | corrected, titled with the surface's ``name`` and
+    where the viewer stands, and the two projections."""
     from adaproj_edge.render.project import project
-    from adaproj_edge.render.sheet import row
+    from adaproj_edge.render.sheet import row, titled
     from adaproj_edge.render.viewer import view, viewer_for
     from adaproj_edge.warp.engine import WarpSettings
 
@@ -80,7 +82,12 @@ def simulate(
         [image, view(surface, plain.frame, viewer), view(surface, corrected.frame, viewer)],
         ["input", "standard projector", f"adaproj ({settings.mode})"],
     )
-    return picture, plain, corrected
+    x, y, z = eye
+    title = (
+        f"{name}, as a viewer at x {x:+.2f}, y {y:+.2f}, z {z:+.2f} m from the projector "
+        "sees it (x right, y down); grey: surface left dark"
+    )
+    return titled(picture, [title]), plain, corrected
 
 
 def run(args: argparse.Namespace) -> int:
@@ -98,7 +105,8 @@ def run(args: argparse.Namespace) -> int:
         mask = poster_mask((image.shape[1], image.shape[0]))
     cmap = content_map(image, mask, given, DEFAULT_THRESHOLD, saliency=args.mode == "content")
     settings = WarpSettings(mode=args.mode, grid=args.grid)
-    picture, _, _ = simulate(surface, image, cmap, settings, args.viewer)
+    name = Path(args.surface).name
+    picture, _, _ = simulate(surface, image, cmap, settings, args.viewer, name)
     write_image(args.out, picture)
     print(f"wrote {args.out}")
     return 0

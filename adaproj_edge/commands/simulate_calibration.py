@@ -36,7 +36,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument(
         "--surface", required=True, help="built-in surface (corner, plane, wall-floor, ...) or MESH"
     )
-    p.add_argument("--rig", required=True, help="the true rig: a calibration TOML/JSON")
+    p.add_argument(
+        "--rig",
+        required=True,
+        help="the true rig: a calibration TOML/JSON (e.g. a copy of "
+        "hw/calibration/rpi5-oakd.toml with a value changed)",
+    )
     p.add_argument("--poses", type=int, default=5, help="poses to capture")
     p.add_argument("--out", required=True, help="session file to write (.mcap)")
     p.add_argument("--board", default="rpi5-oakd", help="board: nominal calibration and camera")

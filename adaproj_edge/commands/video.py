@@ -26,6 +26,9 @@ if TYPE_CHECKING:
 
 VIDEO_NAME = "projected.avi"
 SIDE_NAME = "side.png"
+
+SideFrame = tuple[float, "NDArray[np.uint8]", "NDArray[np.uint8]"]
+"""A frame of the side view: its time (s), the clip's frame, the projector frame."""
 FRAMES_NAME = "frames.json"
 
 
@@ -106,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _play(
     player: Any, surface: Surface, n: int, out: Path, side_frames: int
-) -> tuple[list[dict[str, Any]], list[NDArray[np.uint8]]]:
+) -> tuple[list[dict[str, Any]], list[SideFrame]]:
     """Play ``n`` frames into the video; their records and the side view's frames."""
     import cv2
 
@@ -118,7 +121,7 @@ def _play(
     free_map = player.display.float_map(player.content_free.warp)
     picks = {round(i * (n - 1) / max(1, side_frames - 1)) for i in range(side_frames)}
     records: list[dict[str, Any]] = []
-    side: list[NDArray[np.uint8]] = []
+    side: list[SideFrame] = []
     out.mkdir(parents=True, exist_ok=True)
     tmp = out / f".{VIDEO_NAME}.part.avi"
     fourcc = cv2.VideoWriter.fourcc(*"MJPG")
@@ -130,8 +133,8 @@ def _play(
         for i in range(n):
             played = player.play(i / fps, 1.0 / fps)
             writer.write(played.image)
-            if i in picks:
-                side.append(played.image.copy())
+            if i in picks and played.frame.image is not None:
+                side.append((i / fps, played.frame.image.copy(), played.image.copy()))
             cmap = played.content_map
             salient = cmap.full_size() >= cmap.threshold
             shown = measure(player.display.float_map(played.warp), surface, salient)
@@ -195,13 +198,30 @@ def _write_json(path: Path, records: list[dict[str, Any]]) -> None:
     atomic_write_bytes(path, json.dumps(records, separators=(",", ":")).encode())
 
 
-def _write_side(path: Path, surface: Surface, frames: list[NDArray[np.uint8]]) -> None:
-    """The frames seen from :data:`~adaproj_edge.render.viewer.DEFAULT_VIEWER`, side by
-    side."""
-    import numpy as np
-
+def _write_side(path: Path, surface: Surface, frames: list[SideFrame]) -> None:
+    """The picked frames seen from :data:`~adaproj_edge.render.viewer.DEFAULT_VIEWER`:
+    a plain projector's above, the frames adaproj projected below, titled."""
     from adaproj_edge.fileio import write_image
+    from adaproj_edge.render.project import show
+    from adaproj_edge.render.sheet import row, stack, titled
     from adaproj_edge.render.viewer import DEFAULT_VIEWER, view, viewer_for
+    from adaproj_edge.warp.engine import WarpSettings
+    from adaproj_edge.warp.planner import compute_warp
 
     viewer = viewer_for(surface, DEFAULT_VIEWER)
-    write_image(path, np.concatenate([view(surface, f, viewer) for f in frames], axis=1))
+    h, w = frames[0][1].shape[:2]
+    plain_warp = compute_warp(surface, (w, h), None, WarpSettings(mode="standard"))
+    plain = [view(surface, show(surface, c, plain_warp).frame, viewer) for _, c, _ in frames]
+    shown = [view(surface, f, viewer) for _, _, f in frames]
+    times = [f"{t:.2f} s" for t, _, _ in frames]
+    x, y, z = DEFAULT_VIEWER
+    title = (
+        f"The clip on the surface, as a viewer at x {x:+.2f}, y {y:+.2f}, z {z:+.2f} m from "
+        "the projector sees it: a plain projector above, adaproj (content-aware) below. "
+        "Grey: surface left dark."
+    )
+    rows = [
+        row(plain, [f"{t} plain projector" for t in times], 240),
+        row(shown, [f"{t} adaproj" for t in times], 240),
+    ]
+    write_image(path, titled(stack(rows), [title]))

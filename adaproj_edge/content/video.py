@@ -36,6 +36,11 @@ from adaproj_edge.errors import VideoError
 
 log = logging.getLogger(__name__)
 
+# FFmpeg's own log lines (a damaged file gives several per frame) would come before our
+# one line about the file; quiet unless the environment says otherwise. OpenCV reads
+# this when it opens its first capture.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+
 VIDEO_EXTENSIONS = (".mp4", ".avi", ".mkv")
 
 CODECS = {

@@ -10,7 +10,6 @@ the projector frame at the start of the session).
 
 from __future__ import annotations
 
-import functools
 import logging
 import os
 import struct
@@ -24,12 +23,19 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
+from adaproj_edge.extras import SIM, MissingExtraError
 from adaproj_edge.fileio import read_input
 from adaproj_edge.geometry.ray_triangle import intersect_brute_force
 
 log = logging.getLogger(__name__)
 
 MAX_TRIANGLES = 2_000_000
+
+BRUTE_FORCE_PAIRS_PER_S = 2e6
+"""Ray-triangle pairs the brute-force caster tests per second on one core (about)."""
+MAX_BRUTE_FORCE_PAIRS = 20_000_000
+"""The most rays x triangles one cast may test by brute force (about 10 s); a larger
+cast without the BVH (the ``sim`` extra) is refused with a line naming the extra."""
 
 
 @dataclass(frozen=True)
@@ -87,16 +93,48 @@ class MeshSurface:
 
             return MeshBvh(self.vertices, self.faces).cast
         except Exception as e:  # no warp-lang, or it cannot run here: cast by brute force
-            log.warning(
-                "mesh %s: no BVH ray caster (%s: %s); testing every ray against all %d "
-                "triangles instead, which is slow for large meshes: install the 'sim' extra "
-                "(pip install 'adaproj-edge[sim]')",
-                self.name,
-                type(e).__name__,
-                e,
-                len(self.faces),
+            return _BruteForce(self, f"{type(e).__name__}: {e}")
+
+
+class _BruteForce:
+    """:func:`intersect_brute_force` on one mesh, for want of the BVH: a cast that would
+    test more than :data:`MAX_BRUTE_FORCE_PAIRS` pairs is refused
+    (:class:`MissingExtraError`, naming the ``sim`` extra); the first one done warns."""
+
+    def __init__(self, mesh: MeshSurface, why: str) -> None:
+        self.mesh = mesh
+        self.why = why
+        self.warned = False
+
+    def __call__(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
+        faces = self.mesh.faces
+        pairs = len(dirs) * len(faces)
+        if pairs > MAX_BRUTE_FORCE_PAIRS:
+            s = pairs / BRUTE_FORCE_PAIRS_PER_S
+            took = (
+                f"{s:.0f} s"
+                if s < 120
+                else f"{s / 60:.0f} min"
+                if s < 7200
+                else f"{s / 3600:.0f} h"
             )
-            return functools.partial(intersect_brute_force, self.vertices, self.faces)
+            raise MissingExtraError(
+                SIM,
+                f"{len(dirs)} rays against {len(faces)} triangles by brute force would take "
+                f"about {took}",
+            )
+        if not self.warned:
+            self.warned = True
+            log.warning(
+                "mesh %s: no BVH ray caster (%s); testing every ray against all %d triangles "
+                "instead, which is slow for large meshes: install the 'sim' extra "
+                "(%s)",
+                self.mesh.name,
+                self.why,
+                len(faces),
+                SIM.install,
+            )
+        return intersect_brute_force(self.mesh.vertices, faces, origins, dirs)
 
 
 # ---------------------------------------------------------------------------- files
@@ -209,6 +247,11 @@ def _parse_ply(raw: bytes) -> tuple[FloatArray, NDArray[np.int64]]:
 
 def _xyz(props: list[list[str]], values: list[float]) -> list[float]:
     names = [p[-1] for p in props if p[0] != "list"]
+    missing = [k for k in ("x", "y", "z") if k not in names]
+    if missing:
+        raise ValueError(
+            f"its vertices have no {', '.join(missing)} (their properties: {', '.join(names)})"
+        )
     return [values[names.index(k)] for k in ("x", "y", "z")]
 
 

@@ -26,8 +26,10 @@ class Projector:
 
     def __post_init__(self) -> None:
         K = np.asarray(self.K, dtype=np.float64)
-        if K.shape != (3, 3) or not np.all(np.isfinite(K)):
-            raise InputError(f"projector intrinsics must be a finite 3x3 matrix, got {K.shape}")
+        if K.shape != (3, 3):
+            raise InputError(f"projector intrinsics K must be a 3x3 matrix, got shape {K.shape}")
+        if not np.all(np.isfinite(K)):
+            raise InputError("projector intrinsics K hold a NaN or an infinite value")
         if K[0, 0] <= 0 or K[1, 1] <= 0 or K[2, 2] != 1.0:
             raise InputError("projector intrinsics must have positive focal lengths and K[2,2] = 1")
         if self.width < 2 or self.height < 2:

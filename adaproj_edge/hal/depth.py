@@ -203,6 +203,26 @@ def build_pipeline(settings: StereoSettings) -> tuple[Any, Any, Any]:
     return pipeline, queue, calibration
 
 
+def find_oak_devices() -> list[str]:
+    """The ids of the OAK devices DepthAI sees on USB (none opened).
+
+    Raises ``ModuleNotFoundError`` without DepthAI (the ``device`` extra)."""
+    dai = _dai()
+    return [str(info.getDeviceId()) for info in dai.Device.getAllAvailableDevices()]
+
+
+def read_oak_calibration(settings: StereoSettings) -> DepthCameraModel:
+    """Open the first OAK-D, read its own calibration and close it: the depth camera
+    model it gives (board only; raises a named DeviceError)."""
+    dai = _dai()
+    try:
+        with dai.Device() as device:
+            calibration = device.readCalibration()
+    except RuntimeError as e:
+        raise DeviceNotFoundError(f"cannot open the OAK-D ({e}); check {_CHECK}") from None
+    return depth_model(calibration, settings)
+
+
 class OakDepthCamera:
     """The real depth camera (an OAK-D through DepthAI v3).
 

@@ -263,14 +263,25 @@ class Lsm6dsox:
             raise self._io_error(e) from None
 
     # ------------------------------------------------------------------ start-up
-    def start(self) -> None:
-        """Identity check, software reset, configuration; raises a named DeviceError."""
+    def identify(self) -> int:
+        """Read ``WHO_AM_I``; raises a named DeviceError unless it is an LSM6DSOX's.
+
+        Returns
+        -------
+        int
+            The chip id read (:data:`CHIP_ID`).
+        """
         chip = self._read(WHO_AM_I)
         if chip != CHIP_ID:
             raise DeviceError(
                 f"{self._what()} answered WHO_AM_I = 0x{chip:02X}, expected 0x{CHIP_ID:02X} "
                 f"(LSM6DSOX); another chip is at this address: check {_CHECK}"
             )
+        return chip
+
+    def start(self) -> None:
+        """Identity check, software reset, configuration; raises a named DeviceError."""
+        self.identify()
         self._write(CTRL3_C, CTRL3_SW_RESET | CTRL3_IF_INC)
         for _ in range(RESET_POLLS):
             if not self._read(CTRL3_C) & CTRL3_SW_RESET:

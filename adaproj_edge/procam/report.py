@@ -29,6 +29,7 @@ from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.planes import fit_plane
 from adaproj_edge.geometry.rotations import rotation_vector
 from adaproj_edge.procam.result import CalibrationResult, pose_depths
+from adaproj_edge.render.sheet import titled
 
 LEVELS = ("refused", "poor", "acceptable", "good")
 
@@ -217,8 +218,9 @@ _COLOURS = [(230, 160, 40), (60, 200, 60), (40, 160, 230), (200, 80, 200), (40, 
 def report_picture(
     result: CalibrationResult, verdict: Verdict, scale: float = 0.5, magnify: float = 20.0
 ) -> Image:
-    """The picture (h, w, 3) BGR uint8: pairs and residuals over the projector frame
-    (``scale`` of its size, residuals ``magnify`` times), depth ranges below."""
+    """The picture (h, w, 3) BGR uint8: the verdict and a legend above, pairs and
+    residuals over the projector frame (``scale`` of its size, residuals ``magnify``
+    times), each pose's depth range below."""
     sol = result.projector
     p = result.calibration.projector
     w, h = round(p.width * scale), round(p.height * scale)
@@ -237,8 +239,6 @@ def report_picture(
         cv2.line(img, a, b, (200, 200, 200), 1, cv2.LINE_AA)
         cv2.circle(img, a, 1, colour, -1)
     font = cv2.FONT_HERSHEY_SIMPLEX
-    cv2.putText(img, verdict.line[:110], (6, 16), font, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
-    cv2.putText(img, f"residuals x{magnify:g}", (6, h - 8), font, 0.4, (200, 200, 200), 1)
     depths = pose_depths(result.run)
     if depths:
         lo = min(d[0] for d in depths) * 0.9
@@ -254,4 +254,11 @@ def report_picture(
             img, f"depth {lo / 0.9:.2f} - {hi / 1.05:.2f} m", (w - 150, h + strip - 6), font, 0.35,
             (200, 200, 200), 1,
         )  # fmt: skip
-    return img
+    legend = [
+        verdict.line,
+        "The projector frame: a dot per point pair, coloured by its pose; grey line: its "
+        f"residual, x{magnify:g}; red cross: an outlier.",
+        "Below: each pose's depth, nearest to farthest (white dot: median), numbered in "
+        "the order taken.",
+    ]
+    return titled(img, legend, 0.45)

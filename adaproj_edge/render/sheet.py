@@ -38,6 +38,53 @@ def row(images: Sequence[Image], captions: Sequence[str], height: int = 300) -> 
     return np.hstack(parts)
 
 
+def _wrapped(lines: Sequence[str], width: int, scale: float, thick: int) -> list[str]:
+    """``lines`` broken at spaces so that each fits ``width`` pixels."""
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    out: list[str] = []
+    for line in lines:
+        words = line.split() or [""]
+        cur = words[0]
+        for word in words[1:]:
+            wider = cur + " " + word
+            if cv2.getTextSize(wider, font, scale, thick)[0][0] > width:
+                out.append(cur)
+                cur = word
+            else:
+                cur = wider
+        out.append(cur)
+    return out
+
+
+def titled(img: Image, lines: Sequence[str], scale: float = 0.55) -> Image:
+    """``img`` under a bar holding ``lines`` of text (a title, a legend), left-aligned.
+
+    Parameters
+    ----------
+    img : Image
+        The picture, (h, w) or (h, w, 3) uint8.
+    lines : sequence of str
+        The text, a line each; keep them within the picture's width.
+    scale : float
+        Font scale (0.55: about 16 px high letters).
+
+    Returns
+    -------
+    Image
+        (bar + h, w, 3) uint8, BGR.
+    """
+    img = _bgr(img)
+    step = round(48 * scale)
+    lines = _wrapped(lines, img.shape[1] - 16, scale, 1)
+    bar = np.full((step * len(lines) + round(12 * scale), img.shape[1], 3), 45, np.uint8)
+    for i, text in enumerate(lines):
+        y = step * (i + 1) - round(4 * scale)
+        cv2.putText(
+            bar, text, (8, y), cv2.FONT_HERSHEY_SIMPLEX, scale, (245, 245, 245), 1, cv2.LINE_AA
+        )
+    return np.vstack([bar, img])
+
+
 def stack(rows: Sequence[Image]) -> Image:
     """Rows one under the other, padded to the widest."""
     width = max(r.shape[1] for r in rows)
@@ -67,18 +114,7 @@ def text_page(lines: Sequence[str], size: tuple[int, int], scale: float = 1.0) -
     font, thick = cv2.FONT_HERSHEY_SIMPLEX, max(1, round(2 * scale))
     step = round(36 * scale)
     margin = round(24 * scale)
-    wrapped: list[str] = []
-    for line in lines:
-        words = line.split() or [""]
-        cur = words[0]
-        for word in words[1:]:
-            wider = cur + " " + word
-            if cv2.getTextSize(wider, font, scale, thick)[0][0] > w - 2 * margin:
-                wrapped.append(cur)
-                cur = word
-            else:
-                cur = wider
-        wrapped.append(cur)
+    wrapped = _wrapped(lines, w - 2 * margin, scale, thick)
     fit = max(1, (h - 2 * margin) // step)
     for i, text in enumerate(wrapped[-fit:]):
         y = margin + step * (i + 1) - round(8 * scale)

@@ -102,7 +102,8 @@ def iter_records(
                 break
             except _TORN as e:
                 if not seen_header:
-                    raise InputError(f"{path} is not an MCAP session file ({e})") from None
+                    why = f" ({e})" if str(e) else ""
+                    raise InputError(f"{path} is not an MCAP session file{why}") from None
                 scan.truncated = True
                 scan.read_bytes = f.tell()
                 break

@@ -26,6 +26,7 @@ first pose, for the calibration simulator).
 from __future__ import annotations
 
 import json
+import logging
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,12 +46,15 @@ from adaproj_edge.hal.button import ButtonEvent
 from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.hal.lsm6dsox import Lsm6dsoxConfig
+from adaproj_edge.progress import Progress
 from adaproj_edge.session import schemas
 from adaproj_edge.session.codec import Record
 from adaproj_edge.session.hand import GRAVITY_W, HandMotion
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.stereo import StereoNoise, stereo_depth
 from adaproj_edge.session.writer import SessionWriter
+
+log = logging.getLogger(__name__)
 
 T0_NS = 1_000_000_000
 KEY_CODE = 28
@@ -219,7 +223,9 @@ def simulate(scene: Scene, calibration: Calibration, settings: SimulationSetting
     T = calibration.T_P_D
     t_depth = np.arange(0.0, settings.seconds, 1.0 / settings.depth_fps) + 0.5 / settings.depth_fps
     R_d, p_d = hand.pose(t_depth)
+    progress = Progress("depth frames simulated", len(t_depth), log)
     for k, t in enumerate(t_depth):
+        progress.step(k)
         R_W_D = R_d[k] @ T[:3, :3]
         t_W_D = R_d[k] @ T[:3, 3] + p_d[k]
         pts = scene.points_seen(d.K, d.width, d.height, R_W_D, t_W_D)
@@ -289,7 +295,7 @@ def simulate_session(
     follows ``truth`` when given (recorded as ``truth-calibration.json``)."""
     calibration = calibration or Calibration.default()
     settings = settings or SimulationSettings()
-    if settings.seconds <= 0 or settings.seconds > 600:
+    if not 0 < settings.seconds <= 600:  # (NaN fails it too)
         raise InputError(f"--seconds must be in (0, 600], got {settings.seconds}")
     if not 0 < settings.depth_fps <= 60:
         raise InputError(f"the depth frame rate must be in (0, 60], got {settings.depth_fps}")
