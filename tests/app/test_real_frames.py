@@ -24,6 +24,8 @@ MAX_ANGLE = 0.02
 MAX_SIZE = 0.02
 MAX_JUMP_PCT = 1.0
 
+pytestmark = pytest.mark.slow
+
 FRAMES = load_frames()
 CASES = [(f, r) for f in FRAMES for r in f.regions]
 
