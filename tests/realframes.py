@@ -8,11 +8,15 @@ and the regions to aim at. For a region the rig is built like a device's: the de
 camera is the recording's, the projector sits 4 cm below it (the reference board's
 offset) and is turned to aim at the region's pixel, keeping the camera's roll.
 
-The device path is the runtime's: :class:`~adaproj_edge.app.surfaces.SurfaceSource`
-(the frame repeated ``capture_frames`` times, as a capture of a still scene) ->
+The device path is the runtime itself (:func:`run_runtime`: the
+:class:`~adaproj_edge.app.runtime.Runtime` on a virtual clock, held still with the
+accelerometer reading the frame's gravity, the button pressed, the frame delivered as
+the capture's depth frames), default settings, the built-in poster: its
+:class:`~adaproj_edge.app.surfaces.SurfaceSource` ->
 :meth:`~adaproj_edge.app.warps.WarpSource.pose` ->
-:meth:`~adaproj_edge.app.warps.WarpSource.content_aware`, default settings, the
-built-in poster, "up" = gravity. ``adaproj warp`` is run on the same surface.
+:meth:`~adaproj_edge.app.warps.WarpSource.content_aware` and whatever it does when those
+fail. :func:`run_device` is that chain by hand (the same maps; the exception itself
+where the runtime shows a fault). ``adaproj warp`` is run on the same surface.
 
 The figures are computed from the raw points alone (nothing of the code under test):
 
@@ -271,6 +275,7 @@ class DeviceRun:
     surface: Surface | None = None
     map_xy: NDArray[np.float32] | None = None  # what the display draws (H, W, 2)
     error: str | None = None  # why nothing was projected
+    kind: str = ""  # what was shown: content-aware, content-free, ...
 
     @property
     def projected(self) -> bool:
@@ -312,8 +317,73 @@ def run_device(
         assert item.content_map is not None
         warp, _ = warps.content_aware(surface, item.content_map, ws, entry)
         run.map_xy = warps.float_map(warp)
+        run.kind = "content-aware"
     except AdaprojError as e:
         run.error = f"{type(e).__name__}: {e}"
+    return run
+
+
+def run_runtime(
+    frame: RealFrame,
+    region: Region,
+    item: Item | None = None,
+    settings: AppSettings | None = None,
+    depth_frames: int | None = None,
+) -> DeviceRun:
+    """The device itself (:class:`~adaproj_edge.app.runtime.Runtime`, on a virtual clock)
+    aimed at ``region``: booted, held still (the accelerometer reads gravity, the
+    frame's "up"), the button pressed, then ``depth_frames`` copies of ``frame`` at
+    10 Hz (the capture's, by default). What it projects for this surface is the warp it
+    shows after the capture (the plain picture of the boot is "nothing"); its warp and
+    depth faults are the error."""
+    from adaproj_edge.app.content import mask_content_map
+    from adaproj_edge.app.runtime import Runtime
+    from adaproj_edge.hal.button import ButtonEvent
+    from adaproj_edge.hal.clock import VirtualClock
+    from adaproj_edge.hal.display import MemoryDisplay
+    from adaproj_edge.hal.imu import ImuSample
+
+    item = item or builtin_item()
+    s = settings or AppSettings()
+    n_depth = s.capture_frames if depth_frames is None else depth_frames
+    cal = rig(frame, region)
+    up_p = cal.T_P_D[:3, :3] @ gravity_up(frame)
+    run = DeviceRun(cal, up_p)
+    ms = 1_000_000
+    clock = VirtualClock(1_000 * ms)
+    p = cal.projector
+    rt = Runtime(cal, MemoryDisplay(p.width, p.height), clock, [item], s, mask_content_map)
+    rt.boot()
+    accel = tuple(float(x) for x in 9.81 * up_p)  # the IMU is frame P here (R_P_I = I)
+    events: list[tuple[int, object]] = []
+    t_end = 2_600 + 100 * n_depth
+    events += [
+        (t, ImuSample(t * ms, t * ms, accel, (0.0, 0.0, 0.0))) for t in range(1_000, t_end, 5)
+    ]
+    events += [(t, ButtonEvent(t * ms, t * ms, 28, t == 2_000)) for t in (2_000, 2_100)]
+    events += [
+        (t, DepthFrame(t * ms, t * ms, k, frame.depth_mm))
+        for k, t in enumerate(range(2_550, t_end, 100))
+    ]
+    for t, ev in sorted(events, key=lambda e: e[0]):
+        clock.advance_to(t * ms)
+        rt.tick()
+        if isinstance(ev, ImuSample):
+            rt.on_imu(ev)
+        elif isinstance(ev, ButtonEvent):
+            rt.on_button(ev)
+        elif isinstance(ev, DepthFrame):
+            rt.on_depth(ev)
+    faults = {k: v for k, v in rt.faults.active.items() if k in ("warp", "depth", "range")}
+    if faults:
+        run.error = "; ".join(f"{k} fault: {v}" for k, v in sorted(faults.items()))
+    warp = rt.shown_warp
+    if rt.telemetry.updates and warp is not None and rt.surface is not None:
+        run.surface = rt.surface
+        run.map_xy = rt.warps.float_map(warp)
+        run.kind = str(rt.telemetry.updates[-1]["kind"])
+    elif rt.surface is None and rt.surfaces.filter.current is not None:
+        run.surface = rt.surfaces.prepared(rt.surfaces.filter.current)
     return run
 
 
@@ -375,8 +445,16 @@ class Figures:
     no_object_pct: float = float("nan")
     plane_triangles: int = 0
     upright_rule: str = ""  # the plane the upright figure is measured on: wall or floor
+    kind: str = ""  # what the device showed: content-aware, content-free, ...
     warp_ok: bool | None = None
     warp_error: str = ""
+
+    @property
+    def warp_failed(self) -> bool:
+        """Whether the warp failed for this surface (a warp fault on the display, or the
+        WarpError itself on the chain by hand)."""
+        error = self.error or ""
+        return "warp fault" in error or "WarpError" in error
 
     @property
     def jump_pct(self) -> float:
@@ -526,16 +604,20 @@ def salient(xy: FloatArray, item: Item | None = None) -> NDArray[np.bool_]:
     return ok & (cmap[y, x] >= item.content_map.threshold)
 
 
-def figures(frame: RealFrame, region: Region, render: bool = True) -> tuple[Figures, DeviceRun]:
-    """Run ``region`` of ``frame`` through the device path and score it; ``render``:
-    ``adaproj warp`` draws its frame too (see :func:`adaproj_warp`).
+def figures(
+    frame: RealFrame, region: Region, render: bool = True, runtime: bool = True
+) -> tuple[Figures, DeviceRun]:
+    """Run ``region`` of ``frame`` through the device (:func:`run_runtime`; with
+    ``runtime`` off, the runtime's chain by hand: :func:`run_device`) and score it;
+    ``render``: ``adaproj warp`` draws its frame too (see :func:`adaproj_warp`).
 
     Distortion is measured on the plane fitted in the region's ``plane_box`` (planar
     regions); the upright error on that plane for planar regions, else on the dominant
     plane of the real points under the subject shown (the salient content; all the
     content when too little of it is shown), with the rule of its kind."""
-    run = run_device(frame, region)
+    run = run_runtime(frame, region) if runtime else run_device(frame, region)
     fig = Figures(run.projected, run.error, 100.0 * valid_fraction(frame, run.calibration))
+    fig.kind = run.kind
     if run.surface is not None:
         fig.warp_ok, fig.warp_error = adaproj_warp(run.surface, render=render)
     if run.map_xy is None:

@@ -3,9 +3,10 @@
 
 Every frame of ``tests/fixtures/real/`` (recorded by others with real structured-light
 sensors; provenance in the README there) with the projector aimed at each of its
-regions goes through the runtime's path (``SurfaceSource`` -> ``WarpSource.pose`` ->
-``content_aware``, default settings, the built-in poster, "up" from gravity estimated
-on the frame's floor), and ``adaproj warp`` runs on the same surface. The figures are
+regions goes through the device (the runtime on a virtual clock: ``SurfaceSource`` ->
+``WarpSource.pose`` -> ``content_aware``, default settings, the built-in poster, "up"
+from gravity estimated on the frame's floor), and ``adaproj warp`` runs on the same
+surface. The figures are
 computed from the raw points alone (``tests/realframes.py`` says how): valid depth in
 the region, the share of the frame shown, upright error, angle distortion and size
 inconsistency on the region's plane, content shown across a depth jump (bridging a
@@ -43,7 +44,7 @@ def verdicts(region: Region, fig: Figures) -> list[tuple[str, bool | None]]:
     needs_picture = fig.valid_pct >= MIN_VALID_PCT
     out: list[tuple[str, bool | None]] = [
         ("projected", fig.projected if needs_picture else None),
-        ("no WarpError shown", not (fig.error or "").startswith("WarpError")),
+        ("no WarpError shown", not fig.warp_failed),
     ]
     measured = fig.projected and not math.isnan(fig.upright_deg)
     limit = UPRIGHT_DEG.get(fig.upright_rule, 2.0)
@@ -84,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
         for region in frame.regions:
             fig, _ = figures(frame, region, render=not args.no_render)
             rows.append((frame, region, fig))
-            device = "projected" if fig.projected else f"NOTHING: {fig.error}"
+            device = f"shows {fig.kind}" if fig.projected else f"NOTHING: {fig.error}"
             print(
                 f"{frame.name:15} {region.name:16} {region.kind:12} {fig.valid_pct:6.1f} "
                 f"{fig.shown_pct:6.1f} {_f(fig.upright_deg, '6.1f')} {_f(fig.angle, '6.3f')} "
