@@ -29,7 +29,10 @@ The figures are computed from the raw points alone (nothing of the code under te
   log sqrt(sigma1 sigma2); over the triangles whose three samples are shown and whose
   real points lie on the plane;
 - upright: the content's up (-y) through the same Jacobians, against gravity projected
-  on the plane (walls) or the projector's forward direction projected on it (floors);
+  on the plane (a wall: its normal more than 45 deg from gravity) or the projector's
+  forward direction projected on it (a floor or a table: away from the device); on the
+  region's plane for a planar region, else on the dominant plane (RANSAC) of the real
+  points under the subject shown (the poster's salient content);
 - across a depth jump: shown samples next to a shown sample (1 or 2 samples away) whose
   real point lies more than ``JUMP_M`` away nearly along the ray (within
   ``JUMP_RAY_DEG``: a curtain between a silhouette and what is behind it, not a slanted
