@@ -2,7 +2,7 @@
 a picture, upright, undistorted on planes, off depth jumps, and ``adaproj warp`` agrees.
 
 The frames (``tests/fixtures/real/``) were recorded by others with real structured-light
-sensors; ``tests/realframes.py`` runs them through the runtime's path and computes the
+sensors; ``tests/realframes.py`` runs them through the runtime itself and computes the
 figures from the raw points alone. The aims are the ones the device is held to on real
 sensors; a case the device does not meet yet is marked ``xfail`` (strict) with today's
 figure, and the mark goes when the device meets it.
