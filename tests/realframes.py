@@ -85,8 +85,8 @@ class Region:
     ----------
     name : str
     kind : str
-        wall, floor, corner (wall and floor), wall-objects (a wall with objects in
-        front), desk (a cluttered desk).
+        wall, floor, corner (a wall and its floor), wall-objects (a wall with objects
+        in front), desk (a cluttered desk), corridor.
     aim : (u, v)
         The depth pixel the projector's axis goes through.
     plane_box : (u0, v0, u1, v1)
@@ -143,14 +143,20 @@ class RealFrame:
         return np.stack([x, y, z], axis=-1)
 
 
+def _box(values: list[int]) -> tuple[int, int, int, int]:
+    u0, v0, u1, v1 = (int(x) for x in values)
+    return u0, v0, u1, v1
+
+
 def load_frames(directory: Path = FIXTURES) -> list[RealFrame]:
     """Every frame (``*.json`` with its depth PNG) in ``directory``, by name."""
     frames = []
     for meta_path in sorted(directory.glob("*.json")):
         meta = json.loads(meta_path.read_text())
-        depth = cv2.imread(str(directory / meta["depth"]), cv2.IMREAD_UNCHANGED)
-        if depth is None or depth.dtype != np.uint16:
+        raw = cv2.imread(str(directory / meta["depth"]), cv2.IMREAD_UNCHANGED)
+        if raw is None or raw.dtype != np.uint16 or raw.ndim != 2:
             raise ValueError(f"{meta['depth']}: not a 16-bit depth PNG")
+        depth = np.asarray(raw, np.uint16)
         cam = meta["camera"]
         if (cam["width"], cam["height"]) != (depth.shape[1], depth.shape[0]):
             raise ValueError(f"{meta_path.name}: the camera's size is not the image's")
@@ -160,7 +166,7 @@ def load_frames(directory: Path = FIXTURES) -> list[RealFrame]:
                 r["name"],
                 r["kind"],
                 (int(r["aim"][0]), int(r["aim"][1])),
-                tuple(r["plane_box"]),  # type: ignore[arg-type]
+                _box(r["plane_box"]),
                 float(r.get("throw", 1.4)),
             )
             for r in meta["regions"]
@@ -172,7 +178,7 @@ def load_frames(directory: Path = FIXTURES) -> list[RealFrame]:
                 K,
                 cam["sensor"],
                 float(cam["baseline_m"]),
-                tuple(meta["floor_box"]),  # type: ignore[arg-type]
+                _box(meta["floor_box"]),
                 regions,
                 meta,
             )
@@ -216,7 +222,7 @@ def plane_tol(frame: RealFrame, z: float) -> float:
     """Inlier band (m) of a plane at depth ``z``: 1.5 disparity steps of an 1/8-pixel
     triangulating sensor (a flat wall is a staircase of such steps), at least 1 cm."""
     step = z * z / (frame.K[0, 0] * frame.baseline_m) / 8.0
-    return max(0.01, 1.5 * step)
+    return max(0.01, 1.5 * float(step))
 
 
 def box_points(frame: RealFrame, box: tuple[int, int, int, int]) -> FloatArray:
@@ -357,7 +363,8 @@ def run_runtime(
     p = cal.projector
     rt = Runtime(cal, MemoryDisplay(p.width, p.height), clock, [item], s, mask_content_map)
     rt.boot()
-    accel = tuple(float(x) for x in 9.81 * up_p)  # the IMU is frame P here (R_P_I = I)
+    g = 9.81 * up_p  # the IMU is frame P here (R_P_I = I)
+    accel = (float(g[0]), float(g[1]), float(g[2]))
     events: list[tuple[int, object]] = []
     t_end = 2_600 + 100 * n_depth
     events += [
@@ -517,7 +524,7 @@ def jump_figures(shown: NDArray[np.bool_], real: FloatArray) -> tuple[float, flo
     n = int(shown.sum())
     if n == 0:
         return 0.0, 0.0
-    has = np.isfinite(real).all(axis=-1)
+    has = np.asarray(np.isfinite(real).all(axis=-1), bool)
     bridge = np.zeros_like(shown)
     sin_max = np.sin(np.radians(JUMP_RAY_DEG))
     for dr, dc in ((0, 1), (1, 0), (0, 2), (2, 0)):
@@ -533,7 +540,7 @@ def jump_figures(shown: NDArray[np.bool_], real: FloatArray) -> tuple[float, flo
         bridge[a] |= jump
         bridge[b] |= jump
     k = 2 * NO_OBJECT_RADIUS + 1
-    near = cv2.dilate(has.astype(np.uint8), np.ones((k, k), np.uint8)) > 0
+    near = np.asarray(cv2.dilate(has.astype(np.uint8), np.ones((k, k), np.uint8))) > 0
     nothing = shown & ~near
     return 100.0 * float(bridge.sum()) / n, 100.0 * float(nothing.sum()) / n
 
@@ -604,7 +611,7 @@ def salient(xy: FloatArray, item: Item | None = None) -> NDArray[np.bool_]:
     ok = np.isfinite(xy).all(axis=-1)
     x = np.clip(np.rint(np.where(ok, xy[..., 0], 0)).astype(int), 0, w - 1)
     y = np.clip(np.rint(np.where(ok, xy[..., 1], 0)).astype(int), 0, h - 1)
-    return ok & (cmap[y, x] >= item.content_map.threshold)
+    return np.asarray(ok & (cmap[y, x] >= item.content_map.threshold), bool)
 
 
 def figures(
