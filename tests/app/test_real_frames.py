@@ -16,7 +16,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from tests.realframes import Figures, RealFrame, Region, figures, gravity_up, load_frames
+from tests.realframes import (
+    Figures,
+    RealFrame,
+    Region,
+    figures,
+    gravity_up,
+    jump_figures,
+    load_frames,
+)
 
 MIN_VALID_PCT = 30.0  # a region with this much valid depth must get a picture
 UPRIGHT_DEG = {"wall": 2.0, "floor": 5.0}
@@ -186,3 +194,29 @@ def plane_depth(frame: RealFrame, n: np.ndarray, d: float) -> np.ndarray:
     with np.errstate(divide="ignore"):
         z = d / (rays @ n)
     return np.where((z > 0.3) & (z < 8.0), z, 0.0)
+
+
+def test_the_jump_figure_sees_silhouettes_not_slanted_walls() -> None:
+    """The measure itself, on sampled real points: a wall at 61-79 deg incidence is no jump,
+    nor a quantisation staircase on it; a box 0.5 m in front of a wall is, on the
+    samples either side of its silhouette only; a shown sample far from any point is on
+    nothing."""
+    rows, cols = 60, 80
+    f = 2000.0 / 8  # samples 8 px apart on a 2000 px focal length: 61-79 deg incidence
+    v, u = np.mgrid[0:rows, 0:cols].astype(np.float64)
+    rays = np.stack([(u - cols / 2) / f, (v - rows / 2) / f, np.ones_like(u)], -1)
+    n = np.array([np.sin(np.radians(70.0)), 0.0, -np.cos(np.radians(70.0))])
+    t = -1.0 / (rays @ n)  # the plane n . X = -1 (2.9 m ahead on the axis)
+    z = np.round(t * 40) / 40  # 25 mm depth steps
+    slanted = rays * z[..., None]
+    shown = np.ones((rows, cols), bool)
+    assert jump_figures(shown, slanted) == (0.0, 0.0)
+    wall = rays * 3.0
+    wall[:, 40:] = rays[:, 40:] * 2.5  # a box's face 0.5 m in front, its edge at column 40
+    bridging, nothing = jump_figures(shown, wall)
+    assert nothing == 0.0
+    assert bridging == pytest.approx(100.0 * 4 / cols)  # columns 38-41 touch the edge
+    holes = wall.copy()
+    holes[10:20, 10:20] = np.nan  # no point here
+    _, nothing = jump_figures(shown, holes)
+    assert nothing == pytest.approx(100.0 * 6 * 6 / (rows * cols))  # beyond 2 samples
