@@ -567,15 +567,41 @@ def synthetic_lattices(noise: bool) -> list[tuple[str, FloatArray]]:
     ]
 
 
+@cache
+def settled_reference(
+    noise: bool, index: int, sigma: float, scales: tuple[float, ...]
+) -> tuple[FloatArray, BoolArray]:
+    """:func:`ref_smooth_lattice` of the ``index``-th synthetic lattice, and the nodes
+    whose value rounding does not decide.
+
+    On the noisy lattices, a node whose fit at some scale leaves nothing but rounding
+    (a residual below 1e-6 of the inverse depth; the noise leaves ~1e-3) has no more
+    neighbours than unknowns (the sparse lattice): its window and scale are chosen by
+    comparing residuals made of rounding, so by the CPU and the BLAS build. The
+    noise-free lattices fit exactly everywhere, and there the windows agree (see
+    :func:`synthetic_lattices`): every node is compared.
+    """
+    s = synthetic_lattices(noise)[index][1]
+    settled = np.ones(s.shape, dtype=bool)
+    if noise:
+        for k in scales:
+            q, var = ref_side_window_fit(s, sigma * k)
+            with np.errstate(invalid="ignore"):
+                settled &= ~(np.isfinite(q) & (var <= (1e-6 * q) ** 2))
+    return ref_smooth_lattice(s, sigma, scales, 4.0), settled
+
+
 @pytest.mark.parametrize("step", [1, 2, 3, 4])
 @pytest.mark.parametrize("noise", [True, False])
 def test_smooth_lattice_at_kept_nodes_matches_the_reference(step: int, noise: bool) -> None:
-    for name, s in synthetic_lattices(noise):
+    for index, (name, s) in enumerate(synthetic_lattices(noise)):
         for sigma, scales in ((0.8, (1.0,)), (1.7, (1.0, 2.0, 4.0)), (3.0, (1.0, 2.0, 4.0))):
             new = fits.smooth_lattice(s, sigma, scales, 4.0, step=step)
-            ref = ref_smooth_lattice(s, sigma, scales, 4.0)[::step, ::step]
+            ref, settled = settled_reference(noise, index, sigma, scales)
+            ref, settled = ref[::step, ::step], settled[::step, ::step]
+            assert settled.mean() > 0.97, (name, sigma)  # the sparse one: 14 of 797 fitted
             try:
-                assert_same(new, ref, rtol=RTOL)
+                assert_same(np.where(settled, new, ref), ref, rtol=RTOL)
             except AssertionError as e:
                 raise AssertionError(f"{name} sigma={sigma} step={step}") from e
 
