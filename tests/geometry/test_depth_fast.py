@@ -406,6 +406,8 @@ SESSIONS = ("cylinder", "corner", "sphere")
 RTOL = 1e-6
 # the points are those depths times unit rays, stored as float32: one more rounding
 F32_RTOL = RTOL + float(np.finfo(np.float32).eps)
+# a few roundings of a float32 computation
+F32_ULPS = 4 * float(np.finfo(np.float32).eps)
 # a node's confidence comes from the normal of finite differences of the points (nodes
 # a few cm apart at 1-2 m), which magnifies their relative differences ~100x; in [0, 1]
 CONF_ATOL = 1e-4
@@ -511,18 +513,21 @@ def test_image_stages_match_the_reference() -> None:
     dirs = p.rays(ref_lattice_uv(p, (41, 41)))
     for z in frames[::5]:
         z = np.where(z > 0, z, np.nan)
-        # the same element-wise operations and OpenCV calls in the same order as the
-        # reference (element-wise IEEE arithmetic rounds alike on every CPU): exact
+        # the depths kept are the input's own values (exact medians, comparisons): exact
         clean = images.clean_depth(z, settings)
         np.testing.assert_array_equal(clean, ref_clean_depth(z, settings))
+        # float32 blurs and their quotient: a couple of float32 roundings
         zs, sup = images.smooth_depth(clean, 0.7)
         zs_ref, sup_ref = ref_smooth_depth(clean, 0.7)
-        np.testing.assert_array_equal(zs, zs_ref)
-        np.testing.assert_array_equal(sup, sup_ref)
+        assert_same(zs, zs_ref, rtol=F32_ULPS)
+        assert_same(sup, sup_ref, rtol=F32_ULPS, atol=F32_ULPS)  # support: in [0, 1]
+        # the rays' positions in the image go to float32 maps for the sampling: a last
+        # bit of a position may move a sample by a float32 step, then the iteration's
+        # own rounding; RTOL (a mm at 1 m would be 1e-3) still catches any wrong term
         s, s_sup = rays.intersect_rays(dirs, zs, sup, calibration, settings)
         s_ref, s_sup_ref = ref_intersect_rays(dirs, zs, sup, calibration, settings)
-        assert_same(s, s_ref, rtol=0.0)
-        assert_same(s_sup, s_sup_ref, rtol=0.0)
+        assert_same(s, s_ref)
+        assert_same(s_sup, s_sup_ref)
         assert lattice.supersampling(p, (21, 21), zs, settings) == ref_supersampling(
             p, (21, 21), zs, settings
         )
@@ -562,15 +567,41 @@ def synthetic_lattices(noise: bool) -> list[tuple[str, FloatArray]]:
     ]
 
 
+@cache
+def settled_reference(
+    noise: bool, index: int, sigma: float, scales: tuple[float, ...]
+) -> tuple[FloatArray, BoolArray]:
+    """:func:`ref_smooth_lattice` of the ``index``-th synthetic lattice, and the nodes
+    whose value rounding does not decide.
+
+    On the noisy lattices, a node whose fit at some scale leaves nothing but rounding
+    (a residual below 1e-6 of the inverse depth; the noise leaves ~1e-3) has no more
+    neighbours than unknowns (the sparse lattice): its window and scale are chosen by
+    comparing residuals made of rounding, so by the CPU and the BLAS build. The
+    noise-free lattices fit exactly everywhere, and there the windows agree (see
+    :func:`synthetic_lattices`): every node is compared.
+    """
+    s = synthetic_lattices(noise)[index][1]
+    settled = np.ones(s.shape, dtype=bool)
+    if noise:
+        for k in scales:
+            q, var = ref_side_window_fit(s, sigma * k)
+            with np.errstate(invalid="ignore"):
+                settled &= ~(np.isfinite(q) & (var <= (1e-6 * q) ** 2))
+    return ref_smooth_lattice(s, sigma, scales, 4.0), settled
+
+
 @pytest.mark.parametrize("step", [1, 2, 3, 4])
 @pytest.mark.parametrize("noise", [True, False])
 def test_smooth_lattice_at_kept_nodes_matches_the_reference(step: int, noise: bool) -> None:
-    for name, s in synthetic_lattices(noise):
+    for index, (name, s) in enumerate(synthetic_lattices(noise)):
         for sigma, scales in ((0.8, (1.0,)), (1.7, (1.0, 2.0, 4.0)), (3.0, (1.0, 2.0, 4.0))):
             new = fits.smooth_lattice(s, sigma, scales, 4.0, step=step)
-            ref = ref_smooth_lattice(s, sigma, scales, 4.0)[::step, ::step]
+            ref, settled = settled_reference(noise, index, sigma, scales)
+            ref, settled = ref[::step, ::step], settled[::step, ::step]
+            assert settled.mean() > 0.97, (name, sigma)  # the sparse one: 14 of 797 fitted
             try:
-                assert_same(new, ref, rtol=RTOL)
+                assert_same(np.where(settled, new, ref), ref, rtol=RTOL)
             except AssertionError as e:
                 raise AssertionError(f"{name} sigma={sigma} step={step}") from e
 
