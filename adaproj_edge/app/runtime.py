@@ -177,6 +177,7 @@ class Runtime:
         self._settle_prepared = False
         self._shown_kind = "plain"  # what the last surface update showed
         self._entry: PoseEntry | None = None  # and the pose it showed
+        self._logged_down: list[tuple[str, str]] = []  # the warp chain's last steps down
         self._shown_frames = 0
         self._captured = 0
         self._capture_ns = 0
@@ -571,8 +572,10 @@ class Runtime:
         step, down = chain_of(warp)
         if down:
             self.telemetry.count("fallback_" + step)
-            for gone, why in down:
-                log.warning("%s update: no %s warp (%s); showing %s", reason, gone, why, step)
+            if down != self._logged_down:  # the same again (a pose cached): logged once
+                for gone, why in down:
+                    log.warning("%s update: no %s warp (%s); showing %s", reason, gone, why, step)
+        self._logged_down = down
         return step
 
     def _show_plain(self, reason: str) -> None:

@@ -4,6 +4,8 @@ on keeps the last good picture with a fault mark."""
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 
@@ -53,11 +55,17 @@ def _run(records: list[object], surface: Surface) -> tuple[Runtime, MemoryDispla
     return rt, display
 
 
-def test_a_floor_with_a_flying_pixel_is_projected_repaired(records: list[object]) -> None:
-    """It raised "the warp folds over" and nothing was projected."""
+def test_a_floor_with_a_flying_pixel_is_projected_repaired(
+    records: list[object], caplog: pytest.LogCaptureFixture
+) -> None:
+    """It raised "the warp folds over" and nothing was projected. The step down is
+    logged with its reason (once while it stays the same) and counted per update."""
     pts = _floor_nodes()
     pts[0, 1] *= 0.6  # a flying pixel on the border
-    rt, display = _run(records, Surface(pts.astype(np.float32), CAL.projector))
+    with caplog.at_level(logging.WARNING, logger="adaproj_edge.app.runtime"):
+        rt, display = _run(records, Surface(pts.astype(np.float32), CAL.projector))
+    logged = [r.getMessage() for r in caplog.records if "no content-free warp" in r.getMessage()]
+    assert len(logged) == 1 and "folds over" in logged[0] and "showing repaired" in logged[0]
     assert rt.state == State.PROJECTING and "warp" not in rt.faults
     assert rt.telemetry.updates and all(u["step"] == "repaired" for u in rt.telemetry.updates)
     assert rt.counters["fallback_repaired"] == len(rt.telemetry.updates)
