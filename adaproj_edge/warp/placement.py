@@ -60,7 +60,7 @@ def upright_angle(mesh: MeshGeometry, v: FloatArray, up: FloatArray) -> float:
     how far down lies in the plane) defines the rotation. Returns 0 when down has no
     direction on the surface.
     """
-    rule = upright(mesh, v, np.asarray(up, dtype=np.float64))
+    rule = upright(mesh, np.asarray(up, dtype=np.float64))
     down = -rule.up
     key = "down " + " ".join(f"{x:.17g}" for x in down)
     a, b, area, weight, ok = mesh.remember(key, lambda: _down_on_surface(mesh, down))

@@ -13,8 +13,12 @@
 - **Across a wall and a floor**: the rule of the part the content's centre lies on.
 
 Never upside down: on a wall up is gravity's; on a floor it points away from the device.
-The content's centre is taken where the placement centres it
-(:mod:`~adaproj_edge.geometry.rectangle`): the area centroid of the solved mesh.
+The content's centre is taken where it is in the projector's frame: the centre of the
+lit region (the mesh's pixel-area centroid), where the placement centres it
+(:mod:`~adaproj_edge.geometry.rectangle`) and where the device is aimed. It depends on
+the mesh alone, so two warps of one surface (content-aware and conformal, say) are
+upright the same way; a floor seen grazing, whose flattened area dwarfs the rest,
+does not take over a picture aimed at a wall.
 """
 
 from __future__ import annotations
@@ -56,18 +60,17 @@ class Upright:
     votes: NDArray[np.bool_] | None
 
 
-def upright(mesh: MeshGeometry, v: FloatArray, gravity_up: FloatArray) -> Upright:
-    """The up rule for ``mesh`` with solved positions ``v`` (n, 2) and gravity's "up"
-    ``gravity_up`` (3,) in frame P: decided on the first call for this gravity and kept
-    with the mesh, so every placement of the mesh (content-free, conformal, guarded,
-    refined) is upright the same way."""
+def upright(mesh: MeshGeometry, gravity_up: FloatArray) -> Upright:
+    """The up rule for ``mesh`` and gravity's "up" ``gravity_up`` (3,) in frame P: made
+    once per gravity and kept with the mesh, so every placement of the mesh
+    (content-free, conformal, guarded, refined) is upright the same way."""
     g = np.asarray(gravity_up, dtype=np.float64)
     g = g / np.linalg.norm(g)
     key = "upright " + " ".join(f"{x:.17g}" for x in g)
-    return mesh.remember(key, lambda: _decide(mesh, v, g))
+    return mesh.remember(key, lambda: _decide(mesh, g))
 
 
-def _decide(mesh: MeshGeometry, v: FloatArray, g: FloatArray) -> Upright:
+def _decide(mesh: MeshGeometry, g: FloatArray) -> Upright:
     """:func:`upright`, made (``g`` unit)."""
     p = mesh.p
     t = mesh.tris
@@ -78,17 +81,20 @@ def _decide(mesh: MeshGeometry, v: FloatArray, g: FloatArray) -> Upright:
     level = ok & (np.abs(n @ g) > LEVEL_COS)
     if not level.any():
         return Upright("wall", g, None)  # nothing level: every vote is gravity's
-    # the content's centre: the area centroid of the solved mesh (where the placement
-    # centres the content); the triangles nearest it hold CENTRE_SHARE of the area
-    centres = v[t].mean(axis=1)
-    w = np.where(ok, area, 0.0)
+    # the content's centre: the lit region's centre in the projector's frame; the
+    # triangles nearest it hold CENTRE_SHARE of the lit pixels and decide
+    uv = mesh.uv
+    centres = uv[t].mean(axis=1)
+    w = np.where(ok, mesh.pixel_areas, 0.0)
     c = (centres * w[:, None]).sum(axis=0) / max(float(w.sum()), 1e-300)
     order = np.argsort(np.sum((centres - c) ** 2, axis=1), kind="stable")
     cum = np.cumsum(w[order])
     near = order[: int(np.searchsorted(cum, CENTRE_SHARE * cum[-1])) + 1]
     if w[near][level[near]].sum() <= 0.5 * w[near].sum():
         return Upright("wall", g, None)
-    # the floor's plane: its level triangles' mean normal, turned to gravity's side
+    # the floor's plane: its level triangles' mean normal (by surface area), turned to
+    # gravity's side
+    w = np.where(ok, area, 0.0)
     ns = n[level] * np.sign(n[level] @ g)[:, None]
     normal = (ns * w[level][:, None]).sum(axis=0)
     normal /= np.linalg.norm(normal)
