@@ -41,8 +41,11 @@ with its current content map.
 
 Faults
 ------
+A surface the warp asked for cannot be made on goes down the warp chain
+(:mod:`~adaproj_edge.warp.fallback`: content-free, repaired, the dominant plane's
+keystone); each step down is logged with its reason and counted (``fallback_<step>``).
 Depth dropouts and holes, a camera that stops sending (or raises), IMU errors, a
-surface out of range, a warp that cannot be computed: the last good frame stays up
+surface out of range, a warp that cannot be computed at all: the last good frame stays up
 with a small status mark (:mod:`adaproj_edge.app.status`), the reason is logged and
 listed in :meth:`Runtime.status`, and the next good input clears it.
 
@@ -109,6 +112,7 @@ from adaproj_edge.link.device import Content
 from adaproj_edge.motion.gravity import GravityFilter
 from adaproj_edge.motion.tracker import MotionTracker
 from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.fallback import chain_of
 from adaproj_edge.warp.placement import DEFAULT_UP
 from adaproj_edge.warp.warpmap import Warp
 
@@ -173,6 +177,7 @@ class Runtime:
         self._settle_prepared = False
         self._shown_kind = "plain"  # what the last surface update showed
         self._entry: PoseEntry | None = None  # and the pose it showed
+        self._logged_down: list[tuple[str, str]] = []  # the warp chain's last steps down
         self._shown_frames = 0
         self._captured = 0
         self._capture_ns = 0
@@ -518,9 +523,11 @@ class Runtime:
                 self.telemetry.count("content_aware")
             else:
                 warp, maps = entry.warp, self.warps.content_free_maps(entry)
-        except AdaprojError as e:
+        except AdaprojError as e:  # the chain's last step: the last good picture stays
+            self.telemetry.count("fallback_last-good")
             self._fault("warp", f"no warp for this surface: {e}")
             return
+        step = self._stepped_down(warp, reason)
         self._clear("warp")
         self.surface, self._surface_frames = surface, frames
         self._shown_depth = surface.points[..., 2].astype(np.float64)
@@ -554,8 +561,22 @@ class Runtime:
             cache_hit=hit,
             iterations=int(warp.meta.get("iterations", 0)) if aware else 0,
             probes=probes(warp),
+            step=step,
             update_ms=round((t_end - t_update) * 1e3, 3),  # wall clock: not a decision
         )
+
+    def _stepped_down(self, warp: Warp, reason: str) -> str:
+        """The step of the chain ``warp`` ended at (:mod:`~adaproj_edge.warp.fallback`);
+        each step it went down from is logged with its reason, and the step counted
+        (``fallback_<step>``)."""
+        step, down = chain_of(warp)
+        if down:
+            self.telemetry.count("fallback_" + step)
+            if down != self._logged_down:  # the same again (a pose cached): logged once
+                for gone, why in down:
+                    log.warning("%s update: no %s warp (%s); showing %s", reason, gone, why, step)
+        self._logged_down = down
+        return step
 
     def _show_plain(self, reason: str) -> None:
         self.output.content = self.item.name
@@ -618,8 +639,10 @@ class Runtime:
                     self.surface, step.content_map, self._warp_settings(), self._entry, step.dt
                 )
             except AdaprojError as e:
+                self.telemetry.count("fallback_last-good")
                 self._fault("warp", f"no warp for this clip frame: {e}")
                 return
+            self._stepped_down(warp, "clip")
             self.output.set(warp, maps)
         self.output.render(step.image, "clip", kind)
         pb.shown(self._now())

@@ -34,6 +34,12 @@ COUNTERS = (
     "clip_skipped",
     "clip_late",
     "clip_errors",
+    # updates that went down the warp chain (adaproj_edge.warp.fallback), by the step
+    # they ended at; last-good: nothing could be made, the last picture stayed
+    "fallback_content-free",
+    "fallback_repaired",
+    "fallback_keystone",
+    "fallback_last-good",
 )
 
 

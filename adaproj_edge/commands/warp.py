@@ -61,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
     from adaproj_edge.fileio import read_image, write_image
     from adaproj_edge.render.project import show
     from adaproj_edge.warp.engine import WarpSettings
+    from adaproj_edge.warp.fallback import chain_of, keystone_surface
     from adaproj_edge.warp.planner import compute_warp
     from adaproj_edge.warp.quality import measure
 
@@ -75,7 +76,10 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     warp = compute_warp(surface, (w, h), cmap, settings)
     seconds = time.perf_counter() - t0
-    result = show(surface, image, warp)
+    step, down = chain_of(warp)
+    # a keystone is drawn through the plane it was made on, every other warp through
+    # the surface's own points
+    result = show(keystone_surface(surface) if step == "keystone" else surface, image, warp)
     result.warp.save(args.out)
     if args.frame is not None:
         write_image(args.frame, result.frame)
@@ -91,5 +95,10 @@ def run(args: argparse.Namespace) -> int:
     }
     if salient is not None:
         report["distortion_salient"] = salient.as_dict()
+    # where the warp chain ended (as on the device): content-aware, content-free,
+    # repaired or keystone, and the steps gone down from with their reasons
+    report["step"] = step
+    if down:
+        report["down"] = [{"step": s, "reason": r} for s, r in down]
     print(json.dumps(report, indent=1))
     return 0

@@ -225,14 +225,17 @@ class MeshGeometry:
         cache: WarpCache | None = None,
         grid_uv: FloatArray | None = None,
         may_rule: NDArray[np.bool_] | None = None,
+        drop: NDArray[np.bool_] | None = None,
     ) -> MeshGeometry:
-        """Sample the surface at the grid and keep its largest connected piece.
+        """Sample the surface at the grid and keep its largest edge-connected piece.
 
         ``grid_uv`` (rows + 1, cols + 1, 2) places the vertices elsewhere than
         :meth:`Grid.vertices` (a coarse grid on a subset of a fine grid's vertices).
         ``may_rule`` (2 rows cols,) bool, per grid triangle: where a straight crease
         between curved sides may be looked for (None: everywhere; see
-        :func:`~adaproj_edge.geometry.creases.unfold_measured`)."""
+        :func:`~adaproj_edge.geometry.creases.unfold_measured`). ``drop`` (2 rows
+        cols,) bool, per grid triangle: triangles left out although they meet the
+        surface (a repair's, :mod:`~adaproj_edge.warp.fallback`)."""
         if grid_uv is None:
             sampling = base_sampling(grid, surface)
             grid_uv = sampling.grid_uv
@@ -258,6 +261,8 @@ class MeshGeometry:
                 & np.isfinite(normals).all(axis=0)
                 & np.isfinite(corners).all(axis=(0, 1))
             )
+        if drop is not None:
+            keep &= ~drop
         if keep.sum() < MIN_TRIANGLES:
             raise WarpError(
                 f"only {int(keep.sum())} grid triangles meet the surface; point the projector "
@@ -265,7 +270,7 @@ class MeshGeometry:
             )
 
         def make() -> Topology:
-            rows = _largest_component(all_tris, np.flatnonzero(keep), pts.shape[0])
+            rows = _largest_component(all_tris, np.flatnonzero(keep), grid.cols)
             return Topology.from_triangles(all_tris[rows], rows, pts.shape[0], grid.cols)
 
         key = f"{grid.cols}x{grid.rows}:".encode() + np.packbits(keep).tobytes()
@@ -331,19 +336,31 @@ def _grid_sides(
     return edges, inverse, counts
 
 
-def _largest_component(all_tris: IntArray, rows: IntArray, n_vertices: int) -> IntArray:
-    """The ``rows`` of ``all_tris`` (a grid's triangles) in the largest vertex-connected
-    component of the triangles ``all_tris[rows]`` (by triangle count)."""
+def _largest_component(all_tris: IntArray, rows: IntArray, cols: int) -> IntArray:
+    """The ``rows`` of ``all_tris`` (the triangles of a grid of ``cols`` columns) in the
+    largest edge-connected piece of the triangles ``all_tris[rows]`` (by triangle count).
+
+    Two triangles are joined when they share a side. Pieces that touch only at a vertex
+    are apart: the warp's energy does not tie them (each may turn about the shared
+    vertex), so the system of both together is singular."""
     if rows.size == all_tris.shape[0]:
         return rows  # the whole grid: one piece
     tris = all_tris[rows]
-    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]]])
+    # each side's number (as in _grid_sides): equal numbers are one side shared
+    a = tris.T
+    b = a[[1, 2, 0]]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    span = hi - lo
+    number = (3 * lo + (span > 1) + (span > cols + 1)).ravel()
+    owner = np.tile(np.arange(rows.size), 3)
+    order = np.argsort(number, kind="stable")
+    number, owner = number[order], owner[order]
+    pair = np.flatnonzero(number[1:] == number[:-1])
     graph = scipy.sparse.coo_matrix(
-        (np.ones(e.shape[0]), (e[:, 0], e[:, 1])), shape=(n_vertices, n_vertices)
+        (np.ones(pair.size), (owner[pair], owner[pair + 1])), shape=(rows.size, rows.size)
     )
     ncomp, labels = scipy.sparse.csgraph.connected_components(graph, directed=False)
     if ncomp == 1:
         return rows
-    per_tri = labels[tris[:, 0]]
-    keep: IntArray = rows[per_tri == int(np.argmax(np.bincount(per_tri)))]
+    keep: IntArray = rows[labels == int(np.argmax(np.bincount(labels)))]
     return keep

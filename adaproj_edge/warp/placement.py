@@ -1,9 +1,10 @@
 """Placing a solved mesh on the content: upright on the surface, content fully inside.
 
 A solve gives content-space positions up to a similarity. Placement picks it: the
-rotation that makes "down" on the surface (gravity, or the projector's y axis) point
-down in the content, then the similarity that makes the content rectangle the
-maximal inscribed rectangle of the covered region (paper §4.1).
+rotation that makes "down" on the surface (:mod:`~adaproj_edge.warp.upright`: gravity
+on a wall, toward the device on a floor) point down in the content, then the similarity
+that makes the content rectangle the maximal inscribed rectangle of the covered region
+(paper §4.1).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.rectangle import NEAR, boundary_loops, inscribed_rectangle
 from adaproj_edge.warp.mesh import MeshGeometry
+from adaproj_edge.warp.upright import upright
 
 DEFAULT_UP = (0.0, -1.0, 0.0)  # "up" in frame P when the projector is held level
 
@@ -51,15 +53,19 @@ class Placement:
 def upright_angle(mesh: MeshGeometry, v: FloatArray, up: FloatArray) -> float:
     """Rotation that turns the surface's down direction to +y in content space.
 
-    For each triangle, ``-up`` projected on its plane is carried into content space by
-    the triangle's affine map; the mean direction (weighted by surface area times how
-    far down lies in the plane) defines the rotation. Returns 0 when the surface is
-    level (down has no direction on it).
+    "Down" is decided by the rule of :func:`~adaproj_edge.warp.upright.upright` from
+    gravity's ``up`` (frame P): gravity on a wall, toward the device on a floor. For
+    each triangle that votes, down projected on its plane is carried into content space
+    by the triangle's affine map; the mean direction (weighted by surface area times
+    how far down lies in the plane) defines the rotation. Returns 0 when down has no
+    direction on the surface.
     """
-    down = -np.asarray(up, dtype=np.float64)
-    down = down / np.linalg.norm(down)
+    rule = upright(mesh, np.asarray(up, dtype=np.float64))
+    down = -rule.up
     key = "down " + " ".join(f"{x:.17g}" for x in down)
     a, b, area, weight, ok = mesh.remember(key, lambda: _down_on_surface(mesh, down))
+    if rule.votes is not None:
+        ok = ok & rule.votes
     corners = _corners(mesh)
     x, y = np.take(v[:, 0], corners), np.take(v[:, 1], corners)  # (3, T)
     dx = a * (x[1] - x[0]) + b * (x[2] - x[0])

@@ -54,7 +54,6 @@ Pure: no clock, no hardware; the caller times the steps.
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -64,7 +63,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.content.contentmap import ContentMap
-from adaproj_edge.errors import InputError
+from adaproj_edge.errors import InputError, WarpError
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.warp.adaptive import adaptive_mesh
@@ -80,6 +79,7 @@ from adaproj_edge.warp.engine import (
     refine_as_paper,
     standard_warp,
 )
+from adaproj_edge.warp.fallback import Down, Step, chain, chain_of, keystone_surface, repair
 from adaproj_edge.warp.guard import guard, guard_grid
 from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
 from adaproj_edge.warp.orientation import fold_count
@@ -87,8 +87,6 @@ from adaproj_edge.warp.placement import Placement, place
 from adaproj_edge.warp.posecache import surfaces_match
 from adaproj_edge.warp.temporal import GradedContentMap, TemporalWarpSettings, WarpSmoother
 from adaproj_edge.warp.warpmap import Grid, Warp
-
-log = logging.getLogger(__name__)
 
 StepHook = Callable[[], None]
 
@@ -134,6 +132,12 @@ class ContentFreeWarp:
     refinement_meshes: dict[str, MeshGeometry] = field(
         default_factory=dict, repr=False, compare=False
     )
+
+    @property
+    def step(self) -> str:
+        """The step of the chain (:mod:`~adaproj_edge.warp.fallback`) this warp ended
+        at: ``content-free`` when the surface as measured carried it."""
+        return chain_of(self.warp)[0]
 
     @property
     def conformal_placement(self) -> Placement:
@@ -287,27 +291,64 @@ class WarpPlanner:
     def _content_free(
         self, surface: Surface, content_size: tuple[int, int], settings: WarpSettings
     ) -> tuple[ContentFreeWarp, MeshGeometry]:
+        """Step 1, down the chain (:mod:`~adaproj_edge.warp.fallback`) when the surface
+        as measured cannot carry it: repaired, then the dominant plane's keystone."""
         settings = replace(settings, grid=self.grid)
-        mesh, extra = self._mesh(surface, settings)
-        v_conf = self.backend.conformal(mesh)
-        v, _ = self.backend.content_free(mesh, v_conf, settings.lam)
+        try:
+            mesh, extra = self._mesh(surface, settings)
+            v_conf = self.backend.conformal(mesh)
+            v, _ = self.backend.content_free(mesh, v_conf, settings.lam)
+            return self._start_of(surface, surface, mesh, extra, v_conf, v, content_size, settings)
+        except WarpError as e:
+            down: Down = [("content-free", str(e))]
+        b = self.backend
+        try:
+            fixed = repair(
+                surface, self.grid, self.cache, b.conformal, b.content_free, settings.lam
+            )
+            extra = {"repair_dropped": fixed.dropped}
+            return self._start_of(
+                surface, surface, fixed.mesh, extra, fixed.v_conformal, fixed.v, content_size,
+                settings, "repaired", down,
+            )  # fmt: skip
+        except WarpError as e:
+            down.append(("repaired", str(e)))
+        try:
+            plane = keystone_surface(surface)
+            mesh = MeshGeometry.build(plane, self.grid, self.cache)
+            v_conf = b.conformal(mesh)
+            v, _ = b.content_free(mesh, v_conf, settings.lam)
+            return self._start_of(
+                plane, surface, mesh, {}, v_conf, v, content_size, settings, "keystone", down
+            )
+        except WarpError as e:
+            down.append(("keystone", str(e)))
+        raise WarpError("; ".join(f"{step}: {reason}" for step, reason in down))
+
+    def _start_of(
+        self,
+        shown: Surface,
+        measured: Surface,
+        mesh: MeshGeometry,
+        extra: dict[str, Any],
+        v_conf: FloatArray,
+        v: FloatArray,
+        content_size: tuple[int, int],
+        settings: WarpSettings,
+        step: Step = "content-free",
+        down: Down | None = None,
+    ) -> tuple[ContentFreeWarp, MeshGeometry]:
+        """The content-free warp of ``mesh`` (of the surface ``shown``) with positions
+        ``v`` (conformal ``v_conf``), made for the ``measured`` surface (the pose cache
+        matches it), ended at ``step`` of the chain after ``down``."""
         placement = place(mesh, v, content_size, settings.up)
-        warp = make_warp(mesh, v, placement, surface, content_size, settings, 0, 0.0)
+        warp = make_warp(mesh, v, placement, shown, content_size, settings, 0, 0.0)
         warp.meta.update(extra)
-        depth = _surface_depth(surface)
-        return (
-            ContentFreeWarp(
-                warp,
-                depth,
-                v_conf,
-                v,
-                placement,
-                mesh.verts.copy(),
-                mesh,
-                np.asarray(settings.up, dtype=np.float64),
-            ),
-            mesh,
-        )
+        warp.meta["chain"] = chain(step, down)
+        depth = _surface_depth(measured)
+        up = np.asarray(settings.up, dtype=np.float64)
+        cf = ContentFreeWarp(warp, depth, v_conf, v, placement, mesh.verts.copy(), mesh, up)
+        return cf, mesh
 
     def with_up(
         self, start: ContentFreeWarp, up: FloatArray | tuple[float, ...]
@@ -351,7 +392,27 @@ class WarpPlanner:
         the fine content-free warp ``start`` (made for this surface, or one within a
         pose cache's tolerance of it). ``on_step`` is called after every step (a
         caller's stopwatch). ``frame_dt``: this is a video frame shown ``frame_dt``
-        seconds after the last one (bounded warm steps, smoothed in time)."""
+        seconds after the last one (bounded warm steps, smoothed in time).
+
+        Never raises for the refinement's sake: when it fails, or ``start`` is not the
+        surface's own content-free warp (repaired, keystone), the content-free warp
+        ``start`` is the answer, its ``meta["chain"]`` saying why."""
+        if start.step != "content-free":
+            return start.warp  # a repaired mesh or a plane: nothing to refine on
+        try:
+            return self._refine_on(surface, content_map, settings, start, on_step, frame_dt)
+        except WarpError as e:
+            return _instead(start, str(e))
+
+    def _refine_on(
+        self,
+        surface: Surface,
+        content_map: ContentMap,
+        settings: WarpSettings,
+        start: ContentFreeWarp,
+        on_step: StepHook | None,
+        frame_dt: float | None,
+    ) -> Warp:
         held = None if frame_dt is None else self.smoother.held(content_map, start)
         if held is not None and frame_dt is not None:  # the content stands still: so
             return self.smoother.smooth(held, start, frame_dt)  # does the warp
@@ -470,6 +531,7 @@ class WarpPlanner:
             "iterations": its,
             "salient_vertex_fraction": frac,
             **extra,
+            "chain": chain("content-aware"),
         }
         if factor > 1:
             meta["refine_grid"] = str(self.coarse_grid)
@@ -479,11 +541,7 @@ class WarpPlanner:
         if factor > 1:
             folds = fold_count(warp)
             if folds:
-                log.warning(
-                    "content-aware refinement folds %d triangles; showing content-free", folds
-                )
-                meta = {**fine.meta, "refine_folds": folds}
-                return replace(fine, meta=meta)
+                return _instead(start, f"the refinement folds {folds} triangles", folds)
         return warp
 
     def plan(
@@ -508,22 +566,33 @@ class WarpPlanner:
             # the full grid: our alternation needs no content-free solve when some but
             # not all content is salient (what content_free + refine give, sooner)
             full = replace(settings, grid=self.grid)
-            mesh, extra, v_conf, p_conf = self._conformal_start(surface, content_size, full)
-            ours = content_aware(
-                mesh, v_conf, p_conf, content_map, full, self.backend, surface=surface
-            )
-            if ours is not None:
-                v, placement, its, frac, guarded = ours
-                warp = make_warp(mesh, v, placement, surface, content_size, full, its, frac)
-                warp.meta.update(extra, **guarded)
-                return warp
+            try:
+                mesh, extra, v_conf, p_conf = self._conformal_start(surface, content_size, full)
+                ours = content_aware(
+                    mesh, v_conf, p_conf, content_map, full, self.backend, surface=surface
+                )
+                if ours is not None:
+                    v, placement, its, frac, guarded = ours
+                    warp = make_warp(mesh, v, placement, surface, content_size, full, its, frac)
+                    warp.meta.update(extra, **guarded)
+                    warp.meta["chain"] = chain("content-aware")
+                    return warp
+            except WarpError as e:  # down the chain, from the content-free warp
+                start, _ = self._content_free(surface, content_size, settings)
+                step, down = chain_of(start.warp)
+                down = [("content-aware", str(e)), *down]
+                meta = {**start.warp.meta, "chain": chain(step, down)}
+                return replace(start.warp, meta=meta)
         start, mesh = self._content_free(surface, content_size, settings)
         if content_map is None:
             return start.warp
-        if self.plan_settings.refine_factor > 1:
+        if self.plan_settings.refine_factor > 1 or start.step != "content-free":
             return self.refine(surface, content_map, settings, start)
         # the full grid: refine on the content-free step's own mesh
-        return self._refine(mesh, start.depth, content_map, settings, start, surface=surface)
+        try:
+            return self._refine(mesh, start.depth, content_map, settings, start, surface=surface)
+        except WarpError as e:
+            return _instead(start, str(e))
 
     # ------------------------------------------------------------------ helpers
     def _factor(self, clip: bool) -> int:
@@ -581,6 +650,15 @@ class WarpPlanner:
             return v0, start.placement, False
         v, _ = self.backend.content_free(mesh, self.backend.conformal(mesh), settings.lam)
         return v, place(mesh, v, content_map.content_size, settings.up), False
+
+
+def _instead(start: ContentFreeWarp, reason: str, folds: int = 0) -> Warp:
+    """The content-free warp ``start``, shown because the refinement failed for
+    ``reason`` (``folds``: it folded that many fine triangles)."""
+    meta = {**start.warp.meta, "chain": chain("content-free", [("content-aware", reason)])}
+    if folds:
+        meta["refine_folds"] = folds
+    return replace(start.warp, meta=meta)
 
 
 def compute_warp(
