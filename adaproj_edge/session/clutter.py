@@ -79,7 +79,7 @@ def wall_boxes() -> MeshSurface:
         "wall-boxes",
         [
             *_room(2.4),
-            box(-0.45, 0.05, -0.05, FLOOR_Y, 1.5, 1.9),
+            box(-0.65, -0.15, -0.05, FLOOR_Y, 1.5, 1.9),
             box(0.25, 0.6, -0.3, FLOOR_Y, 1.8, 2.1),
         ],
     )
