@@ -17,7 +17,7 @@ class DepthSettings:
     make a depth jump between neighbouring lattice nodes a silhouette
     (:mod:`~adaproj_edge.geometry.depth.cuts`), ``flying_sigmas`` the same for a pixel
     lying between the two sides of a jump in the depth image; ``cut`` = False keeps
-    every piece of the lattice.
+    every piece of the lattice and the pixels at jumps (the pipeline without cuts).
     """
 
     sensor: str = "oak-d"
