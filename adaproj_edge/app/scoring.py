@@ -18,6 +18,7 @@ import numpy as np
 
 from adaproj_edge.app.runtime import Runtime
 from adaproj_edge.arrays import Float32Array, Image
+from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.display_maps import display_float_map
 from adaproj_edge.render.frame import render_frame
@@ -79,9 +80,12 @@ class Scorer:
             threshold=item.settings.threshold,
             adaptive=False,
         )
-        ref_map = display_float_map(
-            compute_warp(truth, item.size, item.content_map, settings), rt.settings.map_scale
-        )
+        try:
+            ref_map: Float32Array | None = display_float_map(
+                compute_warp(truth, item.size, item.content_map, settings), rt.settings.map_scale
+            )
+        except WarpError:  # a true surface with silhouettes may fold on the device's grid
+            ref_map = None
         plain_map = self._plain.get(item.size)
         if plain_map is None:
             plain_map = display_float_map(rt.warps.planner.standard(item.size), 1)
@@ -89,6 +93,10 @@ class Scorer:
         salient = item.content_map.full_size() >= item.content_map.threshold
         entry: dict[str, Any] = {"t_ns": rt.clock.now_ns()}
         for name, m in (("shown", rt.shown_map), ("truth", ref_map), ("plain", plain_map)):
+            if m is None:  # no warp from the truth: its figures are NaN
+                for key in ("angle_error", "size_inconsistency"):
+                    entry[f"{name}_{key}"] = entry[f"{name}_salient_{key}"] = float("nan")
+                continue
             overall, sal = measure(m, truth, salient)
             assert sal is not None
             entry[f"{name}_angle_error"] = round(overall.angle_error, 5)

@@ -51,7 +51,7 @@ class SurfaceSource:
         if self.settings.planes is None:
             return est.surface
         with self.times.timer("planes"):
-            return snap_planes(est.surface, self.settings.planes)[0]
+            return snap_planes(est.surface, self.settings.planes, sensor=self.estimator.sensor)[0]
 
     def depth_problem(self, frame: DepthFrame, coverage: float) -> tuple[str, str]:
         """The fault (kind, message) of a frame whose surface covers too little."""

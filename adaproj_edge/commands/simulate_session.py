@@ -23,7 +23,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "projector frame at the start): OAK-D-like depth frames, LSM6DSOX-like IMU "
         "samples, button presses, and the ground truth on channels of its own.",
     )
-    p.add_argument("--surface", required=True, help="built-in surface name, or MESH.obj|.ply")
+    p.add_argument(
+        "--surface",
+        required=True,
+        help="built-in surface name (a cluttered room: wall-boxes, wall-chair, wall-shelf, "
+        "desk-partition), or MESH.obj|.ply",
+    )
     p.add_argument("--seconds", type=float, default=5.0, help="length of the session")
     p.add_argument("--out", required=True, help="session file to write (.mcap)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same file)")
@@ -44,6 +49,14 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         metavar="DEG",
         help="the device held rolled by DEG about its optical axis (default 0: level)",
     )
+    p.add_argument(
+        "--sensor",
+        default="oak-d",
+        choices=["oak-d", "kinect", "smooth"],
+        help="the depth sensor's noise model (default oak-d: depth steps of z^2 / (f B 8), "
+        "flying pixels, holes on untextured patches, occlusion bands beside silhouettes; "
+        "smooth: smooth noise only, no visible steps)",
+    )
     p.set_defaults(run=run)
 
 
@@ -55,15 +68,20 @@ def run(args: argparse.Namespace) -> int:
     check_output_file(args.out, "session file")
 
     from adaproj_edge.geometry.calibration import Calibration
+    from adaproj_edge.geometry.depth.sensor import SensorModel
     from adaproj_edge.session.hand import HandMotion
     from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session
+    from adaproj_edge.session.stereo import StereoNoise
 
     cal = Calibration.load(args.calibration) if args.calibration else Calibration.default()
     hand = HandMotion(args.seconds, args.seed, roll_deg=args.roll)
     if args.tremor is not None:
         hand = replace(hand, tremor_deg=args.tremor)
+    stereo = StereoNoise()
+    if args.sensor != "smooth":
+        stereo = StereoNoise.of_sensor(SensorModel.of(cal.depth, args.sensor))
     settings = SimulationSettings(
-        seconds=args.seconds, depth_fps=args.depth_fps, seed=args.seed, motion=hand
+        seconds=args.seconds, depth_fps=args.depth_fps, seed=args.seed, motion=hand, stereo=stereo
     )
     n = simulate_session(Scene.load(args.surface), args.out, cal, settings)
     log.info("wrote %d records to %s", n, args.out)

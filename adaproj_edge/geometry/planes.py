@@ -13,7 +13,11 @@ planes are fitted to small lattice windows, the one with the most nodes within
 ``tolerance_rel`` of the median depth wins, is refitted to those nodes by least
 squares (twice), and its largest 4-connected set of inliers is accepted when it
 covers ``min_fraction`` of the nodes and its RMS residual is below ``max_rms_rel`` of
-the median depth (stereo noise grows with depth). Curved surfaces (a column, a
+the median depth (stereo noise grows with depth). Given the sensor's noise model
+(:class:`~adaproj_edge.geometry.depth.sensor.SensorModel`) the tolerance and the RMS
+also allow, per node, a part of its depth step there, so the staircase a stereo
+camera makes of a wall (24 mm steps at 2.5 m for an OAK-D) is snapped flat rather than
+left as waves. Curved surfaces (a column, a
 dome, a bowl) never meet that on a large piece and are left as they are.
 
 Pure: arrays in, arrays out.
@@ -28,6 +32,7 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from adaproj_edge.arrays import FloatArray
+from adaproj_edge.geometry.depth.sensor import SensorModel
 from adaproj_edge.geometry.surface import Surface
 
 
@@ -40,6 +45,12 @@ class PlaneSettings:
     min_fraction: float = 0.25
     max_bend: float = 1.5  # see curvature_ratio
     max_planes: int = 3
+    # with a sensor model: a node within this many of the sensor's depth steps at its
+    # depth is on the plane, and a piece whose RMS is within this many is planar (a
+    # wall seen by a stereo camera is a staircase of such steps)
+    step_tolerance: float = 0.5
+    step_rms: float = 0.3
+    step_flat: float = 0.1  # a residual below this many steps bends with the staircase
     window: int = 2  # candidate planes from (2 w + 1)^2 node windows ...
     stride: int = 2  # ... centred on every stride-th node
 
@@ -105,8 +116,11 @@ def curvature_ratio(points: FloatArray, normal: FloatArray, offset: float) -> fl
     return float(np.sqrt(np.mean(r**2))) / max(rq, 1e-12)
 
 
-def find_planes(surface: Surface, settings: PlaneSettings | None = None) -> list[Plane]:
-    """The large planar pieces of ``surface``'s lattice, largest first."""
+def find_planes(
+    surface: Surface, settings: PlaneSettings | None = None, sensor: SensorModel | None = None
+) -> list[Plane]:
+    """The large planar pieces of ``surface``'s lattice, largest first (``sensor``: the
+    noise model of the depth it came from, None for none)."""
     s = settings or PlaneSettings()
     pts = surface.points.astype(np.float64)
     valid = np.asarray(np.isfinite(pts).all(axis=-1))
@@ -114,7 +128,14 @@ def find_planes(surface: Surface, settings: PlaneSettings | None = None) -> list
     if n_valid == 0:
         return []
     z = float(np.median(pts[valid][:, 2]))
-    tol, max_rms = s.tolerance_rel * z, s.max_rms_rel * z
+    tol: float | FloatArray = s.tolerance_rel * z
+    max_rms = s.max_rms_rel * z
+    flat_rms = 0.0  # a piece this close to its plane is flat whatever its bend
+    if sensor is not None:
+        flat_rms = s.step_flat * float(sensor.step_m(z))
+        zn = np.where(valid, pts[..., 2], z)
+        tol = np.maximum(tol, s.step_tolerance * sensor.step_m(zn))
+        max_rms = max(max_rms, s.step_rms * float(sensor.step_m(z)))
     free = valid.copy()
     cand = _candidates(pts, valid, s)
     flat = pts.reshape(-1, 3)
@@ -123,7 +144,7 @@ def find_planes(surface: Surface, settings: PlaneSettings | None = None) -> list
         if len(planes) == s.max_planes or cand.shape[0] == 0:
             break
         with np.errstate(invalid="ignore"):
-            near = np.abs(flat @ cand[:, :3].T - cand[:, 3]) < tol  # (N, k)
+            near = np.abs(flat @ cand[:, :3].T - cand[:, 3]) < np.reshape(tol, (-1, 1))
         counts = np.sum(near & free.reshape(-1, 1), axis=0)
         best = int(np.argmax(counts))
         if counts[best] < s.min_fraction * n_valid:
@@ -147,12 +168,15 @@ def find_planes(surface: Surface, settings: PlaneSettings | None = None) -> list
         free &= ~piece
         rms = float(np.sqrt(np.mean((pts[piece] @ n - d) ** 2)))
         bend = curvature_ratio(pts[piece], n, d)
-        if piece.sum() >= s.min_fraction * n_valid and rms <= max_rms and bend <= s.max_bend:
+        planar = rms <= flat_rms or bend <= s.max_bend
+        if piece.sum() >= s.min_fraction * n_valid and rms <= max_rms and planar:
             planes.append(Plane(n, d, piece, rms, bend))
     return planes
 
 
-def plane_labels(surface: Surface, planes: list[Plane], tolerance_m: float) -> NDArray[np.intp]:
+def plane_labels(
+    surface: Surface, planes: list[Plane], tolerance_m: float | FloatArray
+) -> NDArray[np.intp]:
     """(rows, cols) index of the plane each node belongs to, -1 for none: the plane's
     piece, grown by one ring of nodes that lie within ``tolerance_m`` of it (the nodes
     along a crease, which the depth smoothing may have pulled off both walls)."""
@@ -176,7 +200,10 @@ def _plane_depth(rays: FloatArray, plane: Plane) -> FloatArray:
 
 
 def snap_planes(
-    surface: Surface, settings: PlaneSettings | None = None, factor: int = 8
+    surface: Surface,
+    settings: PlaneSettings | None = None,
+    factor: int = 8,
+    sensor: SensorModel | None = None,
 ) -> tuple[Surface, list[Plane]]:
     """``surface`` with its large planar pieces replaced by their planes; the pieces.
 
@@ -185,13 +212,17 @@ def snap_planes(
     a node whose lattice cell has all its corners on planes takes, of those planes,
     the one nearest the interpolated surface there (inside a wall corner the nearer
     wall, outside one the farther); other nodes are interpolated. Every node stays on
-    its projector ray."""
+    its projector ray. ``sensor``: the noise model of the depth (see :func:`find_planes`)."""
     s = settings or PlaneSettings()
-    planes = find_planes(surface, s)
+    planes = find_planes(surface, s, sensor)
     if not planes:
         return surface, planes
     z_med = float(np.nanmedian(surface.points[..., 2]))
-    labels = plane_labels(surface, planes, s.tolerance_rel * z_med)
+    tol: float | FloatArray = s.tolerance_rel * z_med
+    if sensor is not None:
+        zn = np.nan_to_num(surface.points[..., 2].astype(np.float64), nan=z_med)
+        tol = np.maximum(tol, s.step_tolerance * sensor.step_m(zn))
+    labels = plane_labels(surface, planes, tol)
     rows, cols = surface.shape
     p = surface.projector
     shape = ((rows - 1) * factor + 1, (cols - 1) * factor + 1)
@@ -207,7 +238,17 @@ def snap_planes(
     corner_labels = np.stack(
         [labels[ii, jj], labels[ii + 1, jj], labels[ii, jj + 1], labels[ii + 1, jj + 1]]
     )
-    on_planes = np.all(corner_labels >= 0, axis=0)
+    # every known corner on a plane (a cell at the edge of the data takes its plane
+    # where the interpolation has a value, rather than that value held constant)
+    known = np.isfinite(surface.points[..., 2])
+    corner_known = np.stack(
+        [known[ii, jj], known[ii + 1, jj], known[ii, jj + 1], known[ii + 1, jj + 1]]
+    )
+    on_planes = (
+        np.all((corner_labels >= 0) | ~corner_known, axis=0)
+        & np.any(corner_labels >= 0, axis=0)
+        & np.isfinite(z_interp)
+    )
     z = z_interp.copy()
     best = np.full(shape, np.inf)
     for k, plane in enumerate(planes):

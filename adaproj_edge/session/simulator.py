@@ -20,7 +20,9 @@ projector a ground-truth scorer must light the surface with.
 
 Besides the analytic surfaces, ``wall-floor`` is a wall 2 m ahead and the floor
 0.45 m below the device, seen from a device tilted 20 degrees down (``start``: its
-first pose, for the calibration simulator).
+first pose, for the calibration simulator), and the cluttered rooms of
+:mod:`adaproj_edge.session.clutter` (objects in front of walls, a desk with a
+partition).
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.hal.lsm6dsox import Lsm6dsoxConfig
 from adaproj_edge.progress import Progress
 from adaproj_edge.session import schemas
+from adaproj_edge.session.clutter import CLUTTER
 from adaproj_edge.session.codec import Record
 from adaproj_edge.session.hand import GRAVITY_W, HandMotion
 from adaproj_edge.session.records import TruthPose
@@ -145,12 +148,15 @@ class Scene:
         if name_or_path == WALL_FLOOR:
             spec = {"kind": "mesh", "name": WALL_FLOOR, "file": MESH_ATTACHMENT}
             return cls(wall_floor_mesh(), {**spec, "start": [0.0, 0.0, 0.0, -0.35, 0.0, 0.0]})
+        if name_or_path in CLUTTER:
+            spec = {"kind": "mesh", "name": name_or_path, "file": MESH_ATTACHMENT}
+            return cls(CLUTTER[name_or_path](), spec)
         if Path(name_or_path).suffix.lower() in (".obj", ".ply"):
             mesh = load_mesh(name_or_path)
             return cls(mesh, {"kind": "mesh", "name": mesh.name, "file": MESH_ATTACHMENT})
         raise InputError(
             f"unknown surface {name_or_path!r}: give a mesh file (.obj, .ply) or one of "
-            + ", ".join([*SURFACES, WALL_FLOOR])
+            + ", ".join([*SURFACES, WALL_FLOOR, *CLUTTER])
         )
 
     def points_seen(
@@ -229,7 +235,7 @@ def simulate(scene: Scene, calibration: Calibration, settings: SimulationSetting
         R_W_D = R_d[k] @ T[:3, :3]
         t_W_D = R_d[k] @ T[:3, 3] + p_d[k]
         pts = scene.points_seen(d.K, d.width, d.height, R_W_D, t_W_D)
-        depth = stereo_depth(pts, d, settings.stereo, rng)
+        depth = stereo_depth(pts, d, settings.stereo, rng, pts @ R_W_D.T + t_W_D)
         ts = T0_NS + round(t * 1e9)
         rx = ts + 35_000_000 + int(rng.integers(0, 5_000_000))
         recs.append((rx, 0, DepthFrame(ts, rx, k, depth)))

@@ -7,6 +7,20 @@
 - invalid (0) pixels: beyond the disparity search range (too close) or too far, at
   depth discontinuities (left-right check), in the left border band the other camera
   does not see, at grazing angles (more likely the more grazing), random dropouts.
+
+:meth:`StereoNoise.of_sensor` is what a real sensor shows
+(:class:`~adaproj_edge.geometry.depth.sensor.SensorModel`, on by default in
+``adaproj simulate-session``): its matcher's error mostly smooth and below the
+disparity step, so every wall comes out as a staircase of steps ``z^2 / (f B 2^bits)``;
+and besides:
+
+- the band beside a silhouette the other camera cannot see (``occlusion``): with the
+  right camera to the right of the reference (left) one, the background just left of
+  a foreground object;
+- flying pixels (``flying``: the fraction of pixels at a depth jump that get a depth
+  between its two sides instead of none);
+- holes on untextured or dark patches (``untextured``: the fraction of the surface,
+  in patches fixed to the world, with no depth).
 """
 
 from __future__ import annotations
@@ -19,6 +33,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.calibration import DepthCameraModel
+from adaproj_edge.geometry.depth.sensor import SensorModel
 
 
 @dataclass(frozen=True)
@@ -35,6 +50,23 @@ class StereoNoise:
     grazing_cos: float = 0.3
     edge_jump: float = 0.04
     median: int = 5
+    occlusion: bool = False
+    flying: float = 0.0
+    untextured: float = 0.0
+
+    @classmethod
+    def of_sensor(cls, sensor: SensorModel) -> StereoNoise:
+        """A real sensor's frames: its step, most of its error smooth and below the step
+        (a staircase on every wall), occlusion bands, flying pixels, untextured holes."""
+        return cls(
+            white_px=0.02,
+            correlated_px=0.04,
+            correlation_px=12.0,
+            subpixel_bits=sensor.subpixel_bits,
+            occlusion=True,
+            flying=0.3,
+            untextured=0.03,
+        )
 
 
 def normals_cos(points: FloatArray) -> FloatArray:
@@ -48,10 +80,39 @@ def normals_cos(points: FloatArray) -> FloatArray:
         return np.abs(np.sum(n * ray, axis=-1))  # type: ignore[no-any-return]
 
 
+def occluded(disparity: FloatArray, valid: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Pixels (h, w) of the reference (left) camera the right camera does not see: a
+    point at column u with disparity d lands at u - d there, hidden when a closer point
+    to its right lands left of it (at u' - d' < u - d)."""
+    h, w = disparity.shape
+    cols = np.arange(w, dtype=np.float64)[None, :]
+    m = np.where(valid, cols - disparity, np.inf)
+    # the least u' - d' over u' > u: a running minimum from the right, shifted by one
+    right = np.minimum.accumulate(m[:, ::-1], axis=1)[:, ::-1]
+    after = np.concatenate([right[:, 1:], np.full((h, 1), np.inf)], axis=1)
+    return valid & (after < cols - disparity - 0.5)
+
+
+def untextured_patches(points_w: FloatArray, fraction: float) -> NDArray[np.bool_]:
+    """Where (h, w) world points (h, w, 3) fall on untextured patches (about
+    ``fraction`` of a surface, patches some 20 cm across, fixed to the world)."""
+    x, y, z = points_w[..., 0], points_w[..., 1], points_w[..., 2]
+    with np.errstate(invalid="ignore"):
+        t = np.sin(9.0 * x + 4.0 * z + 1.3) * np.sin(8.0 * y - 5.0 * z + 0.7)
+        t *= np.sin(5.0 * (x - y) + 3.0 * z)
+        limit = 1.0 - 2.2 * fraction**0.5  # |t| near 1 on about this fraction
+        return np.asarray(np.isfinite(t) & (t > limit))
+
+
 def stereo_depth(
-    points: FloatArray, model: DepthCameraModel, noise: StereoNoise, rng: np.random.Generator
+    points: FloatArray,
+    model: DepthCameraModel,
+    noise: StereoNoise,
+    rng: np.random.Generator,
+    points_w: FloatArray | None = None,
 ) -> NDArray[np.uint16]:
-    """Depth frame (h, w) uint16 mm of true points (h, w, 3) in frame D (NaN = none)."""
+    """Depth frame (h, w) uint16 mm of true points (h, w, 3) in frame D (NaN = none);
+    ``points_w``: the same points in the world, for the untextured patches."""
     z = points[..., 2]
     h, w = z.shape
     valid = np.isfinite(z) & (z > 0)
@@ -84,8 +145,21 @@ def stereo_depth(
         edge = ~np.isfinite(zz)
         edge = cv2.dilate(edge.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     jump = cv2.dilate(jump.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    if noise.flying > 0:
+        # some pixels at a jump report a depth between its two sides
+        lo = cv2.erode(np.where(valid, zt, 1e9).astype(np.float32), np.ones((3, 3), np.uint8))
+        hi = cv2.dilate(np.where(valid, zt, 0.0).astype(np.float32), np.ones((3, 3), np.uint8))
+        fly = jump & valid & (rng.random((h, w)) < noise.flying)
+        t = rng.random((h, w))
+        mixed = t * lo + (1 - t) * hi
+        dq = np.where(fly, fb / np.maximum(mixed, 1e-3), dq)
+        jump &= ~fly
     valid &= ~jump
     valid &= ~(edge & (rng.random((h, w)) < 0.5))
+    if noise.occlusion:
+        valid &= ~occluded(d, np.isfinite(z) & (z > 0))
+    if noise.untextured > 0 and points_w is not None:
+        valid &= ~untextured_patches(points_w, noise.untextured)
     cols = np.arange(w)[None, :]
     valid &= cols >= d  # the left border band the right camera does not see
     cos = normals_cos(np.where(valid[..., None], points, np.nan))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 from adaproj_edge.cli import main
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.calibration import Calibration
+from adaproj_edge.geometry.depth.sensor import SensorModel
 from adaproj_edge.geometry.rotations import quaternion, rotation_of
 from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.imu import ImuSample
@@ -37,8 +39,14 @@ def test_simulated_session_round_trips_exactly(tmp_path: Path) -> None:
     assert main(["simulate-session", "--surface", "corner", "--seconds", "1", "--depth-fps",
                  "3", "--seed", "4", "--out", str(out)]) == 0  # fmt: skip
     s = read_session(out)
-    assert s.records == simulate(Scene.load("corner"), CAL, SHORT)
+    # the OAK-D's noise model is on by default
+    oak_d = StereoNoise.of_sensor(SensorModel.of(CAL.depth, "oak-d"))
+    assert s.records == simulate(Scene.load("corner"), CAL, replace(SHORT, stereo=oak_d))
     assert s.truth_surface_spec() == {"kind": "analytic", "name": "corner"}
+    smooth = tmp_path / "smooth.mcap"
+    assert main(["simulate-session", "--surface", "corner", "--seconds", "1", "--depth-fps",
+                 "3", "--seed", "4", "--sensor", "smooth", "--out", str(smooth)]) == 0  # fmt: skip
+    assert read_session(smooth).records == simulate(Scene.load("corner"), CAL, SHORT)
 
 
 def test_cli_errors(tmp_path: Path) -> None:

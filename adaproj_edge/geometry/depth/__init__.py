@@ -3,12 +3,14 @@
 Modules: ``settings`` (the tuning), ``estimate`` (``SurfaceEstimator``: the whole
 pipeline; it owns its scratch memory), ``images`` (steps 1-2), ``rays`` (step 3),
 ``lattice`` (the lattice, spikes, holes, confidence), ``fits`` (the side-window
-smoothing of step 4), ``temporal`` (``SurfaceFilter``), ``workspace`` (scratch).
+smoothing of step 4), ``sensor`` (the depth sensor's noise model: steps, sigma(z)),
+``cuts`` (the lattice cut at silhouettes), ``temporal`` (``SurfaceFilter``),
+``workspace`` (scratch).
 
 Steps (``estimate.SurfaceEstimator``):
 
-1. depth outside the working range, and pixels far from their 5x5 median (speckle),
-   are dropped;
+1. depth outside the working range, pixels far from their 5x5 median (speckle), and
+   pixels beside a depth jump beyond the sensor's noise (flying pixels) are dropped;
 2. the depth image is smoothed by normalised convolution (a Gaussian over valid
    pixels only), which also gives each pixel its *support* (how much valid data is
    around it);
@@ -24,8 +26,10 @@ Steps (``estimate.SurfaceEstimator``):
    ``smooth_m`` and wider scales, each node taking the widest scale that agrees with
    the narrower ones (``fits.smooth_lattice``), and the requested lattice is taken
    from it (the fits are evaluated at its nodes only; the finer lattice is their
-   data); small holes (not touching the frame border) are filled from their
-   neighbours;
+   data); the lattice is cut where neighbouring nodes jump by more than the sensor's
+   noise and the surface's slope explain, and only the piece under the projector's
+   aim is kept (``cuts``); small holes (not touching the frame border nor a cut) are
+   filled from their neighbours;
 5. every node gets a confidence in [0, 1] from support, the stereo noise expected at
    its depth (grows with z^2), the viewing angle, and whether it was filled.
 

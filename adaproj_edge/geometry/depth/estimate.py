@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import BoolArray, FloatArray
 from adaproj_edge.geometry.calibration import Calibration
+from adaproj_edge.geometry.depth.cuts import aim_node, cut_lattice, keep_aimed_piece, keep_edges
 from adaproj_edge.geometry.depth.fits import smooth_lattice
 from adaproj_edge.geometry.depth.images import clean_images, sampled_images, smooth_images
 from adaproj_edge.geometry.depth.lattice import (
@@ -21,6 +22,7 @@ from adaproj_edge.geometry.depth.lattice import (
     supersampling_at,
 )
 from adaproj_edge.geometry.depth.rays import intersect_images
+from adaproj_edge.geometry.depth.sensor import SensorModel
 from adaproj_edge.geometry.depth.settings import DepthSettings
 from adaproj_edge.geometry.depth.workspace import Workspace
 from adaproj_edge.geometry.surface import Surface
@@ -85,6 +87,7 @@ class SurfaceEstimator:
     def __init__(self, calibration: Calibration, settings: DepthSettings | None = None) -> None:
         self.calibration = calibration
         self.settings = settings or DepthSettings()
+        self.sensor = SensorModel.of(calibration.depth, self.settings.sensor)
         self.work = Workspace()
         self._rays: dict[tuple[int, int], FloatArray] = {}
 
@@ -137,7 +140,7 @@ class SurfaceEstimator:
                 (cal.depth.width, cal.depth.height),
                 interpolation=cv2.INTER_NEAREST,
             ).astype(np.float64)
-        ok, z32 = clean_images(z, settings, True, work)
+        ok, z32 = clean_images(z, settings, True, work, self.sensor if settings.cut else None)
         smoothed = smooth_images(ok, z32, settings.smooth_sigma_px, work)
         images = sampled_images(*smoothed, settings, work)
         p = cal.projector
@@ -145,15 +148,30 @@ class SurfaceEstimator:
         fine = ((shape[0] - 1) * k + 1, (shape[1] - 1) * k + 1)
         s, sup = intersect_images(self.rays(fine), images, cal, settings)
         s = reject_spikes(s, settings.spike_rel)
+        raw = s[::k, ::k]
         if np.isfinite(s).any():
             spacing = node_spacing_m(p, fine, float(np.nanmedian(s)))
             sigma = min(settings.smooth_m / spacing, settings.smooth_max_nodes)
             s = smooth_lattice(
-                s, sigma, settings.smooth_scales, settings.smooth_accept, step=k, work=work
+                s,
+                sigma,
+                settings.smooth_scales,
+                settings.smooth_accept,
+                step=k,
+                work=work,
+                floor=settings.step_floor * self.sensor.inverse_step,
             )
         else:
             s = s[::k, ::k]
-        s, filled = fill_holes(s, settings.max_hole_nodes)
+        blocked = None
+        if settings.cut:
+            s = keep_edges(s, raw, self.sensor, settings.jump_sigmas)
+            s, blocked = cut_lattice(s, self.sensor, settings.jump_sigmas, settings.jump_slope)
+        s, filled = fill_holes(s, settings.max_hole_nodes, blocked)
+        if settings.cut:
+            K = p.K
+            s = keep_aimed_piece(s, aim_node(shape, (K[0, 2], K[1, 2]), (p.width, p.height)))
+            filled &= np.isfinite(s)
         return s, sup[::k, ::k], filled
 
 

@@ -209,12 +209,17 @@ def smooth_lattice(
     accept: float = 1.5,
     step: int = 1,
     work: Workspace | None = None,
+    floor: float = 0.0,
 ) -> FloatArray:
     """Side-window quadratic smoothing (:func:`side_window_fit`) at ``sigma_nodes``
     times each of ``scales`` (increasing): a node takes the largest scale whose fit is
-    still about as good (residual at most ``accept`` times) as the scale below it, so
-    flat and gently curved parts get the most smoothing and tighter shapes keep
-    their detail. Unknown nodes stay unknown; nodes without a fit keep their value.
+    still about as good (differs by at most ``accept`` times the narrower fit's standard
+    error, plus ``floor``) as the scale below it, so flat and gently curved parts get
+    the most smoothing and tighter shapes keep their detail. ``floor`` is the inverse
+    depth a narrower fit may follow without it being shape: the sensor's step
+    (:attr:`~adaproj_edge.geometry.depth.sensor.SensorModel.inverse_step`), so a wall's
+    staircase is smoothed over, not followed. Unknown nodes stay unknown; nodes without
+    a fit keep their value.
 
     Returns the nodes ``[::step, ::step]`` (each depends only on the fits there; the
     whole lattice is data).
@@ -226,7 +231,7 @@ def smooth_lattice(
     q, var = qs[0], vs[0]
     for q2, var2 in zip(qs[1:], vs[1:], strict=True):
         with np.errstate(invalid="ignore"):
-            take = np.isfinite(q2) & (np.abs(q2 - q) <= accept * np.sqrt(var))
+            take = np.isfinite(q2) & (np.abs(q2 - q) <= accept * np.sqrt(var) + floor)
         q = np.where(take, q2, q)
         var = np.where(take, var2, var)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -10,8 +10,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import BoolArray, FloatArray
+from adaproj_edge.geometry.depth.sensor import SensorModel
 from adaproj_edge.geometry.depth.settings import DepthSettings
 from adaproj_edge.geometry.depth.workspace import Workspace
+
+_KERNEL = np.ones((3, 3), np.uint8)
 
 
 @dataclass(frozen=True)
@@ -75,10 +78,19 @@ def _medians(
 
 
 def clean_images(
-    z: FloatArray, settings: DepthSettings, positive: bool, work: Workspace
+    z: FloatArray,
+    settings: DepthSettings,
+    positive: bool,
+    work: Workspace,
+    sensor: SensorModel | None = None,
 ) -> tuple[BoolArray, NDArray[np.float32]]:
     """Step 1 in scratch: mask of the pixels :func:`clean_depth` keeps (and, if
-    ``positive``, z > 0), and the float32 depth where in range, 0 elsewhere."""
+    ``positive``, z > 0), and the float32 depth where in range, 0 elsewhere.
+
+    Given the ``sensor``'s noise model, the pixels on either side of a depth jump are
+    dropped too (flying pixels, and the pixels the smoothing would mix across it): those
+    whose 3x3 neighbourhood spans more than ``flying_sigmas`` of its depth error plus
+    ``speckle_rel`` of its depth (a floor seen grazing spans less)."""
     shape = z.shape
     ok = work.get("ok", shape, np.bool_)
     tmp = work.get("tmp", shape, np.bool_)
@@ -100,7 +112,31 @@ def clean_images(
         np.abs(dev, out=dev)
         np.multiply(z, settings.speckle_rel, out=lim)
         ok &= np.less_equal(dev, lim, out=tmp)
+        if sensor is not None:
+            _drop_jumps(ok, z32, settings, sensor, work)
     return ok, z32
+
+
+def _drop_jumps(
+    ok: BoolArray,
+    z32: NDArray[np.float32],
+    settings: DepthSettings,
+    sensor: SensorModel,
+    work: Workspace,
+) -> None:
+    """Clear ``ok`` where the 3x3 neighbourhood of kept depths spans a jump."""
+    shape = ok.shape
+    zk = np.multiply(z32, ok, out=work.get("zk", shape, np.float32))
+    hi = cv2.dilate(zk, _KERNEL, dst=work.get("hi", shape, np.float32))
+    zk[~ok] = np.float32(1e9)
+    lo = cv2.erode(zk, _KERNEL, dst=work.get("lo", shape, np.float32))
+    # limit = (flying_sigmas sigma(hi) / hi + speckle_rel) hi, sigma(z) = c z^2
+    c = np.float32(settings.flying_sigmas * sensor.disparity_total_px / sensor.fb)
+    lim = np.multiply(hi, c, out=work.get("flim", shape, np.float32))
+    lim += np.float32(settings.speckle_rel)
+    lim *= hi
+    np.subtract(hi, lo, out=zk)
+    ok &= np.less_equal(zk, lim, out=work.get("tmp", shape, np.bool_))
 
 
 def smooth_images(

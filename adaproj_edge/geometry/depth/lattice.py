@@ -60,8 +60,11 @@ def reject_spikes(s: FloatArray, rel: float) -> FloatArray:
     return out
 
 
-def fill_holes(s: FloatArray, max_nodes: int) -> tuple[FloatArray, BoolArray]:
-    """Fill NaN regions of at most ``max_nodes`` nodes that do not touch the border.
+def fill_holes(
+    s: FloatArray, max_nodes: int, blocked: BoolArray | None = None
+) -> tuple[FloatArray, BoolArray]:
+    """Fill NaN regions of at most ``max_nodes`` nodes that do not touch the border
+    (nor a ``blocked`` node: a silhouette's, see :mod:`~adaproj_edge.geometry.depth.cuts`).
 
     Harmonic fill (each filled node the mean of its neighbours). Returns the filled
     lattice and the mask of filled nodes.
@@ -75,6 +78,8 @@ def fill_holes(s: FloatArray, max_nodes: int) -> tuple[FloatArray, BoolArray]:
     small = sizes <= max_nodes
     small[0] = False
     small[border] = False
+    if blocked is not None:
+        small[np.unique(labels[blocked])] = False
     fill = small[labels]
     if not fill.any():
         return s, fill

@@ -7,8 +7,25 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class DepthSettings:
-    """Tuning of the depth -> surface pipeline (metres, pixels)."""
+    """Tuning of the depth -> surface pipeline (metres, pixels).
 
+    ``sensor`` names the kind of depth sensor
+    (:data:`~adaproj_edge.geometry.depth.sensor.SENSORS`; its focal length and baseline
+    come from the calibration). ``step_floor`` is how many of its inverse-depth steps a
+    narrower smoothing fit may follow before a wider one is refused; ``jump_sigmas``
+    how many of its depth errors (sigma(z), beyond what the surface's slope explains)
+    make a depth jump between neighbouring lattice nodes a silhouette
+    (:mod:`~adaproj_edge.geometry.depth.cuts`), ``flying_sigmas`` the same for a pixel
+    lying between the two sides of a jump in the depth image; ``cut`` = False keeps
+    every piece of the lattice and the pixels at jumps (the pipeline without cuts).
+    """
+
+    sensor: str = "oak-d"
+    step_floor: float = 0.25
+    jump_sigmas: float = 6.0
+    jump_slope: float = 2.0
+    flying_sigmas: float = 4.0
+    cut: bool = True
     min_depth_m: float = 0.35
     max_depth_m: float = 6.0
     speckle_rel: float = 0.03

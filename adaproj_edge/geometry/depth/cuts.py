@@ -1,0 +1,136 @@
+"""Depth discontinuities are edges, not slopes: the lattice cut at silhouettes.
+
+Where an object stands in front of a wall, neighbouring lattice nodes (or the nodes
+either side of a small gap of unknown ones: the band one stereo camera cannot see)
+differ by far more than the sensor's noise and the surface's slope explain. Such a
+pair is a silhouette, not a steep surface: the lattice is cut there. A pair of
+neighbours (``gap`` unknown nodes between them, 0 to :data:`MAX_GAP`) is cut when
+
+    |s_b - s_a| > slope (gap + 1) max(|d_before|, |d_after|) + k sigma(max(s_a, s_b))
+
+where ``d_before``, ``d_after`` are the depth differences of the neighbouring pairs
+just before and after along the same line that go the same way (a tilted wall or a
+floor seen grazing explains large differences; an object's edge, where the
+difference turns around, does not), and ``sigma`` the sensor's depth error there
+(:class:`~adaproj_edge.geometry.depth.sensor.SensorModel`): judged per pair from its
+depth and the baseline, not a fixed threshold.
+
+Before that, a node the smoothing moved by more than that noise allows gets its
+measured depth back (:func:`keep_edges`): near a silhouette a fit may reach across it
+and put the node between the two sides. At a cut between neighbours the farther
+node is dropped (no triangle of the lattice then spans the jump); a gap at a cut is
+never filled in. Of the pieces left
+(4-connected known nodes), the one under the projector's aim (its optical axis) is
+kept, else the largest; the others are dropped (no content stretched over the
+"curtains" at jumps).
+
+Pure: arrays in, arrays out.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from adaproj_edge.arrays import BoolArray, FloatArray
+from adaproj_edge.geometry.depth.sensor import SensorModel
+
+MAX_GAP = 3  # unknown nodes between a pair judged for a cut
+
+
+def _cuts_along_rows(
+    s: FloatArray, sensor: SensorModel, sigmas: float, slope: float
+) -> tuple[BoolArray, BoolArray]:
+    """Cuts along each row of ``s`` (rows, cols): the nodes to drop (the far node of a
+    cut between neighbours) and the unknown nodes of a cut gap (never filled)."""
+    rows, cols = s.shape
+    drop = np.zeros(s.shape, bool)
+    gap_nodes = np.zeros(s.shape, bool)
+    known = np.isfinite(s)
+    pad = np.full((rows, cols + 2 * (MAX_GAP + 2)), np.nan)
+    o = MAX_GAP + 2  # column of s[:, 0] in pad
+    pad[:, o : o + cols] = s
+    with np.errstate(invalid="ignore"):
+        d1 = pad[:, 1:] - pad[:, :-1]  # d1[:, c] = pad[:, c + 1] - pad[:, c]
+    empty = np.ones((rows, cols), bool)  # the nodes between a and b are all unknown
+    for g in range(min(MAX_GAP, cols - 2) + 1):
+        if g > 0:
+            empty = empty[:, :-1] & ~known[:, g : g + cols - g]
+        n = cols - g - 1  # pairs (j, j + g + 1)
+        if n <= 0:
+            break
+        a, b = s[:, :n], s[:, g + 1 : g + 1 + n]
+        ok = np.isfinite(a) & np.isfinite(b) & empty[:, :n]
+        if not ok.any():
+            continue
+        d = b - a
+        j = np.arange(n)
+        before = d1[:, o + j - 1]  # a - its left neighbour
+        after = d1[:, o + j + g + 1]  # b's right neighbour - b
+        with np.errstate(invalid="ignore"):
+            same_b = np.where(np.sign(before) == np.sign(d), np.abs(before), 0.0)
+            same_a = np.where(np.sign(after) == np.sign(d), np.abs(after), 0.0)
+            explained = slope * (g + 1) * np.maximum(same_b, same_a)
+            limit = explained + sigmas * sensor.sigma_m(np.fmax(a, b))
+            cut = ok & (np.abs(d) > limit)
+        if not cut.any():
+            continue
+        r, c = np.nonzero(cut)
+        if g == 0:
+            far = np.where(a[r, c] > b[r, c], c, c + 1)
+            drop[r, far] = True
+        else:
+            for k in range(1, g + 1):
+                gap_nodes[r, c + k] = True
+    return drop, gap_nodes
+
+
+def keep_edges(
+    smoothed: FloatArray, raw: FloatArray, sensor: SensorModel, sigmas: float
+) -> FloatArray:
+    """``smoothed`` (rows, cols) with the ``raw`` depth back where the two differ by more
+    than ``sigmas`` of the sensor's depth error: a fit that reached across a silhouette
+    (its node then lies between the two sides, a "curtain"), not noise removed."""
+    with np.errstate(invalid="ignore"):
+        off = np.abs(smoothed - raw) > sigmas * sensor.sigma_m(raw)
+    return np.where(off, raw, smoothed)
+
+
+def cut_lattice(
+    s: FloatArray, sensor: SensorModel, sigmas: float, slope: float
+) -> tuple[FloatArray, BoolArray]:
+    """``s`` (rows, cols) with the far node of every cut between neighbours dropped
+    (NaN), and the mask of nodes that must stay unknown (those dropped and the gaps at
+    cuts: hole filling leaves them alone)."""
+    drop_r, gap_r = _cuts_along_rows(s, sensor, sigmas, slope)
+    drop_c, gap_c = _cuts_along_rows(s.T, sensor, sigmas, slope)
+    drop = drop_r | drop_c.T
+    blocked = drop | gap_r | gap_c.T
+    return np.where(drop, np.nan, s), blocked
+
+
+def keep_aimed_piece(s: FloatArray, aim: tuple[int, int]) -> FloatArray:
+    """``s`` (rows, cols) with only one piece of 4-connected known nodes kept: the one
+    holding node ``aim`` (row, col), else the largest."""
+    known = np.isfinite(s)
+    labels, n = ndimage.label(known)
+    if n <= 1:
+        return s
+    keep = int(labels[aim])
+    if keep == 0:
+        sizes = np.bincount(labels.ravel())
+        sizes[0] = 0
+        keep = int(np.argmax(sizes))
+    return np.where(labels == keep, s, np.nan)
+
+
+def aim_node(
+    shape: tuple[int, int], principal: tuple[float, float], size: tuple[int, int]
+) -> tuple[int, int]:
+    """The lattice node (row, col) of a (rows, cols) lattice over a ``size`` = (width,
+    height) projector frame nearest its principal point ``principal`` = (cx, cy)."""
+    rows, cols = shape
+    w, h = size
+    col = round(principal[0] / max(w - 1, 1) * (cols - 1))
+    row = round(principal[1] / max(h - 1, 1) * (rows - 1))
+    return int(np.clip(row, 0, rows - 1)), int(np.clip(col, 0, cols - 1))

@@ -1,0 +1,137 @@
+"""What a depth sensor's frames look like: its noise model, in one place.
+
+Stereo (an OAK-D) and structured light (a Kinect-class sensor) both measure a
+disparity ``d = f B / z`` (focal ``f`` in pixels, baseline ``B``) and report it in
+steps of ``1 / 2^bits`` pixel. A surface at depth ``z`` therefore comes out in depth
+steps of
+
+    dz = z^2 / (f B 2^bits)
+
+(an OAK-D with 3 subpixel bits: about 6 mm at 1.25 m, 24 mm at 2.5 m), the same in
+every frame, and with a random error of ``sigma(z) = z^2 / (f B) * sigma_d`` on top,
+where ``sigma_d`` combines the matcher's disparity noise and the step's own
+(``1 / (2^bits sqrt(12))``). In inverse depth the step is a constant,
+``1 / (f B 2^bits)``: a quadratic fit of inverse depth sees the same staircase at every
+distance.
+
+The smoothing (:mod:`~adaproj_edge.geometry.depth.fits`) lets a wider fit replace a
+narrower one that only follows a step, plane snapping
+(:mod:`~adaproj_edge.geometry.planes`) accepts a wall's nodes within its steps, and
+the lattice is cut where neighbouring nodes differ by more than the noise and the
+surface's slope explain (:mod:`~adaproj_edge.geometry.depth.cuts`). The session
+simulator draws frames from the same model (:mod:`adaproj_edge.session.stereo`).
+
+A sensor's focal length and baseline come from the calibration's depth camera
+model (an OAK-D's own, read from the device); :data:`SENSORS` holds what is not in
+it: the subpixel bits and the disparity noise of each kind of sensor.
+
+Pure: numbers in, numbers out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.errors import InputError
+from adaproj_edge.geometry.calibration import DepthCameraModel
+
+
+@dataclass(frozen=True)
+class SensorKind:
+    """What a kind of depth sensor adds to its camera model.
+
+    Attributes
+    ----------
+    name : str
+        ``"oak-d"`` or ``"kinect"`` (keys of :data:`SENSORS`).
+    subpixel_bits : int
+        Fractional bits of the reported disparity (steps of ``1 / 2^bits`` px).
+    disparity_sigma_px : float
+        Random disparity error of the matcher (px), before the steps.
+    """
+
+    name: str
+    subpixel_bits: int
+    disparity_sigma_px: float
+
+
+SENSORS: dict[str, SensorKind] = {
+    # OAK-D stereo: subpixel mode, 3 fractional bits by default (DepthAI)
+    "oak-d": SensorKind("oak-d", 3, 0.1),
+    # Kinect-class structured light: disparity in 1/8 px (11-bit raw values)
+    "kinect": SensorKind("kinect", 3, 0.07),
+}
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """The noise model of one depth sensor.
+
+    Parameters
+    ----------
+    name : str
+        The kind of sensor (:data:`SENSORS`).
+    focal_px : float
+        Focal length of the depth image in pixels.
+    baseline_m : float
+        Stereo (or projector-camera) baseline in metres.
+    subpixel_bits : int
+        Fractional bits of the disparity.
+    disparity_sigma_px : float
+        Random disparity error of the matcher (px).
+    """
+
+    name: str
+    focal_px: float
+    baseline_m: float
+    subpixel_bits: int = 3
+    disparity_sigma_px: float = 0.1
+
+    def __post_init__(self) -> None:
+        if self.focal_px <= 0 or self.baseline_m <= 0:
+            raise InputError("a depth sensor needs a positive focal length and baseline")
+        if not 0 <= self.subpixel_bits <= 8 or self.disparity_sigma_px < 0:
+            raise InputError("subpixel bits must be 0..8 and the disparity noise >= 0")
+
+    @classmethod
+    def of(cls, camera: DepthCameraModel, kind: str = "oak-d") -> SensorModel:
+        """The model of a ``kind`` sensor (:data:`SENSORS`) with ``camera``'s focal
+        length and baseline (a unit's own, from its calibration)."""
+        k = SENSORS.get(kind)
+        if k is None:
+            raise InputError(f"unknown depth sensor {kind!r}: one of {', '.join(SENSORS)}")
+        return cls(k.name, camera.focal, camera.baseline_m, k.subpixel_bits, k.disparity_sigma_px)
+
+    @property
+    def fb(self) -> float:
+        """Focal length times baseline (px m): disparity = fb / z."""
+        return self.focal_px * self.baseline_m
+
+    @property
+    def disparity_step_px(self) -> float:
+        """The disparity's step (px): ``1 / 2^bits``."""
+        return float(2.0**-self.subpixel_bits)
+
+    @property
+    def inverse_step(self) -> float:
+        """The step of inverse depth (1/m), the same at every depth: ``1 / (f B 2^bits)``."""
+        return self.disparity_step_px / self.fb
+
+    def step_m(self, z: FloatArray | float) -> FloatArray:
+        """Depth step (m) at depth ``z``: ``z^2 / (f B 2^bits)``."""
+        zz = np.asarray(z, dtype=np.float64)
+        return zz * zz * self.inverse_step
+
+    @property
+    def disparity_total_px(self) -> float:
+        """The disparity's whole random error (px): the matcher's and the step's."""
+        return float(np.hypot(self.disparity_sigma_px, self.disparity_step_px / np.sqrt(12.0)))
+
+    def sigma_m(self, z: FloatArray | float) -> FloatArray:
+        """Depth error (m, one sigma) of one pixel at depth ``z``:
+        ``z^2 / (f B) * sigma_d``."""
+        zz = np.asarray(z, dtype=np.float64)
+        return zz * zz / self.fb * self.disparity_total_px

@@ -1,0 +1,212 @@
+"""The depth pipeline on what a real sensor gives: quantised walls come out flat, and a
+box in front of a wall is cut at its silhouette (geometry/depth/sensor.py, cuts.py, the
+step floor of fits.py, planes.py with a sensor model).
+
+The depth frames are made here, independently of the session simulator: true depth of
+planes and boxes, its disparity rounded to the sensor's 1/8 px steps (a real OAK-D's
+staircase), the band beside a silhouette that one camera does not see left empty.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.errors import InputError
+from adaproj_edge.geometry.calibration import Calibration, DepthCameraModel
+from adaproj_edge.geometry.depth.estimate import SurfaceEstimator
+from adaproj_edge.geometry.depth.lattice import lattice_uv
+from adaproj_edge.geometry.depth.sensor import SensorModel
+from adaproj_edge.geometry.depth.settings import DepthSettings
+from adaproj_edge.geometry.planes import snap_planes
+
+CAL = Calibration.default()
+D = CAL.depth
+FB = D.focal * D.baseline_m
+
+
+def depth_rays() -> FloatArray:
+    """Rays (h, w, 3) with z = 1 of every depth pixel."""
+    v, u = np.mgrid[0 : D.height, 0 : D.width].astype(np.float64)
+    return np.stack([(u - D.K[0, 2]) / D.K[0, 0], (v - D.K[1, 2]) / D.K[1, 1], np.ones_like(u)], -1)
+
+
+def plane_depth(rays: FloatArray, normal: FloatArray, point: FloatArray) -> FloatArray:
+    """Depth (z) along ``rays`` (z = 1) of the plane through ``point`` with ``normal``."""
+    with np.errstate(divide="ignore"):
+        z = (normal @ point) / (rays @ normal)
+    return np.where(z > 0, z, np.nan)
+
+
+def quantised(z: FloatArray, bits: int = 3, jitter_px: float = 0.0, seed: int = 0) -> FloatArray:
+    """Depth as the sensor reports it: disparity (with ``jitter_px`` of noise) rounded
+    to 1 / 2^bits px, in millimetres; NaN stays NaN. Without jitter the steps are as
+    clean as a real OAK-D's after its median filter."""
+    rng = np.random.default_rng(seed)
+    d = FB / z + rng.normal(scale=jitter_px, size=z.shape)
+    q = np.round(d * 2**bits) / 2**bits
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.round(FB / q * 1000.0) / 1000.0
+    return np.where(np.isfinite(z) & (q > 0), out, np.nan)
+
+
+def lattice_truth(normal_d: FloatArray, point_d: FloatArray, shape: tuple[int, int]) -> FloatArray:
+    """True points (rows, cols, 3) in frame P where the lattice's rays meet a plane given
+    in frame D."""
+    R, t = CAL.T_P_D[:3, :3], CAL.T_P_D[:3, 3]
+    n, c = R @ normal_d, R @ point_d + t
+    rays = CAL.projector.rays(lattice_uv(CAL.projector, shape))
+    return rays * plane_depth(rays, n, c)[..., None]
+
+
+def angle_distortion(est: FloatArray, truth: FloatArray) -> FloatArray:
+    """Per lattice triangle: sigma1 / sigma2 - 1 of the map from the estimated triangle to
+    the true one (what content laid out undistorted on the estimate shows on the truth)."""
+    out = []
+    rows, cols = est.shape[:2]
+    for corners in (((0, 0), (0, 1), (1, 1)), ((0, 0), (1, 1), (1, 0))):
+        e = [est[i : rows - 1 + i, j : cols - 1 + j] for i, j in corners]
+        t = [truth[i : rows - 1 + i, j : cols - 1 + j] for i, j in corners]
+        E = np.stack([e[1] - e[0], e[2] - e[0]], -1).reshape(-1, 3, 2)
+        T = np.stack([t[1] - t[0], t[2] - t[0]], -1).reshape(-1, 3, 2)
+        ok = np.isfinite(E).all(axis=(1, 2)) & np.isfinite(T).all(axis=(1, 2))
+        re, rt = np.linalg.qr(E[ok])[1], np.linalg.qr(T[ok])[1]
+        sv = np.linalg.svd(rt @ np.linalg.inv(re), compute_uv=False)
+        out.append(sv[:, 0] / sv[:, 1] - 1.0)
+    return np.concatenate(out)
+
+
+# --- the noise model ---------------------------------------------------------------------
+
+
+def test_step_and_sigma_follow_the_formula() -> None:
+    model = SensorModel.of(D, "oak-d")
+    assert model.focal_px == D.focal and model.baseline_m == D.baseline_m
+    for z in (1.25, 2.5, 4.0):
+        assert model.step_m(z) == pytest.approx(z * z / (D.focal * D.baseline_m * 8), rel=1e-12)
+    # about 6 mm at 1.25 m and 24 mm at 2.5 m for the nominal OAK-D
+    assert 0.005 < model.step_m(1.25) < 0.007 and 0.021 < model.step_m(2.5) < 0.026
+    # the step in inverse depth is the same at every depth
+    z = np.array([1.0, 2.0, 3.0])
+    assert np.allclose(model.step_m(z) / z**2, model.inverse_step)
+    # sigma: the matcher's noise and the step's (uniform: step / sqrt 12), grown with z^2
+    want = np.hypot(0.1, 0.125 / np.sqrt(12))
+    assert model.sigma_m(2.0) == pytest.approx(4.0 / (D.focal * D.baseline_m) * want)
+    assert model.sigma_m(3.0) / model.sigma_m(1.5) == pytest.approx(4.0)
+    # a unit's own calibration: its focal and baseline; a Kinect-class sensor
+    other = DepthCameraModel(np.array([[580.0, 0, 320], [0, 580.0, 240], [0, 0, 1]]), 640, 480)
+    kinect = SensorModel.of(other, "kinect")
+    assert kinect.step_m(2.5) == pytest.approx(2.5**2 / (580 * 0.075 * 8))
+    with pytest.raises(InputError):
+        SensorModel.of(D, "lidar")
+
+
+# --- part 3: a quantised wall is flat ----------------------------------------------------
+
+
+@pytest.mark.parametrize("z0", [1.5, 2.5, 3.0])
+@pytest.mark.parametrize("tilt_deg", [25.0, 50.0])
+def test_a_quantised_wall_comes_out_planar(z0: float, tilt_deg: float) -> None:
+    t = np.radians(tilt_deg)
+    normal, point = np.array([np.sin(t), 0.0, -np.cos(t)]), np.array([0.0, 0.0, z0])
+    z = quantised(plane_depth(depth_rays(), normal, point), seed=int(z0 * 10 + tilt_deg))
+    steps = np.unique(np.round(z[200, 300:340] * 1000))
+    assert steps.size >= 2  # the frame is a staircase
+    estimator = SurfaceEstimator(CAL)
+    est = estimator.estimate(z, (21, 21))
+    snapped, planes = snap_planes(est.surface, sensor=estimator.sensor)
+    assert len(planes) == 1
+    truth = lattice_truth(normal, point, snapped.shape)
+    got = snapped.points.astype(np.float64)
+    assert np.isfinite(got[..., 2]).mean() > 0.6
+    assert np.mean(angle_distortion(got, truth)) <= 0.02
+
+
+# --- part 2: a box in front of a wall is cut at its silhouette ----------------------------
+
+WALL_Z = 2.5
+
+
+def box_scene(cx: float) -> tuple[FloatArray, FloatArray]:
+    """Depth frame (h, w) of a box (front face 0.5 x 0.4 m at 1.6 m, centred at x =
+    ``cx``) in front of a frontal wall at 2.5 m, quantised, with the band of the wall
+    beside the box that the right camera does not see left empty; and the box's
+    extent (x0, x1, y0, y1, z) in frame D."""
+    rays = depth_rays()
+    box = np.array([cx - 0.25, cx + 0.25, -0.2, 0.2, 1.6])
+    z = np.full(rays.shape[:2], WALL_Z)
+    x, y = rays[..., 0] * box[4], rays[..., 1] * box[4]
+    on_box = (x >= box[0]) & (x <= box[1]) & (y >= box[2]) & (y <= box[3])
+    z[on_box] = box[4]
+    # the right camera (baseline to the right) cannot see the wall just left of the box:
+    # the wall pixels whose point, seen from the right camera, is behind the box
+    xr = rays[..., 0] * WALL_Z - D.baseline_m  # the wall point in the right camera
+    u_r = xr / WALL_Z  # its ray there; the box's edges seen from the right camera:
+    lo, hi = (box[0] - D.baseline_m) / box[4], (box[1] - D.baseline_m) / box[4]
+    yy = rays[..., 1] * WALL_Z / box[4]
+    hidden = ~on_box & (u_r >= lo) & (u_r <= hi) & (np.abs(yy * box[4]) <= 0.2)
+    z[hidden] = np.nan
+    return quantised(z), box
+
+
+def node_labels(box: FloatArray, shape: tuple[int, int]) -> FloatArray:
+    """1 where the lattice's projector ray meets the box first, 0 where the wall."""
+    R, t = CAL.T_P_D[:3, :3], CAL.T_P_D[:3, 3]
+    rays_p = CAL.projector.rays(lattice_uv(CAL.projector, shape))
+    rays_d = rays_p @ R  # directions in D; the projector's centre in D:
+    o = -R.T @ t
+    s = (box[4] - o[2]) / rays_d[..., 2]
+    x, y = o[0] + s * rays_d[..., 0], o[1] + s * rays_d[..., 1]
+    return ((x >= box[0]) & (x <= box[1]) & (y >= box[2]) & (y <= box[3])).astype(float)
+
+
+def spanning_triangles(z: FloatArray, labels: FloatArray) -> int:
+    """Lattice triangles with every corner known whose corners lie on different sides."""
+    n = 0
+    rows, cols = z.shape
+    for corners in (((0, 0), (0, 1), (1, 1)), ((0, 0), (1, 1), (1, 0))):
+        zs = np.stack([z[i : rows - 1 + i, j : cols - 1 + j] for i, j in corners])
+        ls = np.stack([labels[i : rows - 1 + i, j : cols - 1 + j] for i, j in corners])
+        known = np.isfinite(zs).all(axis=0)
+        n += int(np.sum(known & (ls.min(axis=0) != ls.max(axis=0))))
+    return n
+
+
+@pytest.mark.parametrize("shape", [(21, 21), (41, 61)])
+def test_a_box_under_the_aim_is_kept_and_the_wall_cut_off(shape: tuple[int, int]) -> None:
+    z, box = box_scene(0.0)
+    est = SurfaceEstimator(CAL).estimate(z, shape)
+    got = est.surface.points[..., 2].astype(np.float64)
+    labels = node_labels(box, shape)
+    known = np.isfinite(got)
+    assert spanning_triangles(got, labels) == 0
+    assert known.any() and np.all(labels[known] == 1)  # the box: the piece under the aim
+    assert known.sum() >= 0.8 * labels.sum()  # most of the box's face
+    # and its nodes are on the box's face, not pulled toward the wall behind
+    dev = np.abs(est.surface.points[..., 2][known] - 1.6 - CAL.T_P_D[2, 3])
+    assert np.median(dev) < 0.01 and np.max(dev) < 0.05  # (the edge nodes: a few cm)
+
+
+def test_a_wall_under_the_aim_is_kept_without_a_curtain() -> None:
+    shape = (21, 21)
+    z, box = box_scene(0.55)  # the box off to the right; the aim on the wall
+    est = SurfaceEstimator(CAL).estimate(z, shape)
+    got = est.surface.points[..., 2].astype(np.float64)
+    labels = node_labels(box, shape)
+    known = np.isfinite(got)
+    assert labels.sum() > 10  # the projector sees the box
+    assert spanning_triangles(got, labels) == 0
+    assert np.all(labels[known] == 0)
+    assert known.sum() >= 0.8 * (labels == 0).sum()
+    # nothing between the two depths (no curtain, no filled occlusion band)
+    zp = est.surface.points[..., 2][known]
+    assert np.all(np.abs(zp - WALL_Z - CAL.T_P_D[2, 3]) < 0.05)
+
+
+def test_without_cuts_the_surface_spans_the_silhouette() -> None:
+    """What the cuts remove (and what the pipeline did before them)."""
+    z, box = box_scene(0.55)
+    est = SurfaceEstimator(CAL, DepthSettings(cut=False)).estimate(z, (21, 21))
+    got = est.surface.points[..., 2].astype(np.float64)
+    assert spanning_triangles(got, node_labels(box, (21, 21))) > 0
