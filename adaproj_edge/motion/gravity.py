@@ -71,7 +71,8 @@ class GravitySettings:
     max_lever : float
         The longest lever believed (metres; a longer one is scaled down to it).
     warmup_s : float
-        Seconds at the start while only the lever is learnt (no sample used).
+        Seconds from the first sample while only the lever is learnt (no sample used,
+        the deliberate rate not checked).
     settle_s : float
         Seconds of used samples before the estimate is trusted.
     """
@@ -84,7 +85,7 @@ class GravitySettings:
     hold_s: float = 0.3
     lever_tau_s: float = 3.0
     max_lever: float = 1.0
-    warmup_s: float = 0.2
+    warmup_s: float = 0.3
     settle_s: float = 0.25
 
 
@@ -119,7 +120,7 @@ class GravityFilter:
         self._rate.reset()
         self._steps = 0
         self._quiet_s = math.inf  # since the last deliberate turn (none yet)
-        self._age_s = 0.0  # of the samples past the gates
+        self._age_s = 0.0  # since the first sample
 
     def update(self, t_ns: int, accel: FloatArray, rate: FloatArray, still: bool = True) -> None:
         """One sample: specific force (3,) m/s^2 and angular rate (3,) rad/s, frame P;
@@ -155,15 +156,17 @@ class GravityFilter:
         if self._stages is None:
             self._start(f)
             return
+        self._age_s += dt_prev
+        if self._age_s < s.warmup_s:
+            # the lever is being learnt (its swing still in the samples) and the rate's
+            # low-pass starts with a transient of the tremor
+            return
         if not still or float(np.linalg.norm(self._rate.value)) > s.max_rate:
             self._quiet_s = 0.0
             return
         self._quiet_s += dt_prev
         if self._quiet_s < s.hold_s:
             return
-        self._age_s += dt_prev
-        if self._age_s < s.warmup_s:
-            return  # the lever is being learnt: the swing is still in the samples
         dev = abs(float(np.linalg.norm(f)) - STANDARD_GRAVITY) / s.shake
         weight = 1.0 / (1.0 + dev) ** 2
         first = self._used_s == 0.0
