@@ -71,8 +71,8 @@ class GravitySettings:
     max_lever : float
         The longest lever believed (metres; a longer one is scaled down to it).
     warmup_s : float
-        Seconds from the first sample while only the lever is learnt (no sample used,
-        the deliberate rate not checked).
+        Seconds from the first sample while only the lever is learnt (no sample used;
+        the deliberate rate is checked from two of its time constants later).
     settle_s : float
         Seconds of used samples before the estimate is trusted.
     """
@@ -158,10 +158,13 @@ class GravityFilter:
             return
         self._age_s += dt_prev
         if self._age_s < s.warmup_s:
-            # the lever is being learnt (its swing still in the samples) and the rate's
-            # low-pass starts with a transient of the tremor
+            # the lever is being learnt (its swing still in the samples); the rate's
+            # low-pass starts with a transient of the tremor (not checked for two of its
+            # time constants more)
             return
-        if not still or float(np.linalg.norm(self._rate.value)) > s.max_rate:
+        settling = self._age_s < s.warmup_s + 2.0 * s.rate_tau_s  # the low-pass's start
+        turning = not settling and float(np.linalg.norm(self._rate.value)) > s.max_rate
+        if not still or turning:
             self._quiet_s = 0.0
             return
         self._quiet_s += dt_prev
