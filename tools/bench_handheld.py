@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The hand-held figures of issue 14, on simulated sessions, on one core.
+"""The hand-held figures, on simulated sessions, on one core.
 
     .venv/bin/python tools/bench_handheld.py              # every figure
     .venv/bin/python tools/bench_handheld.py --seconds 4  # shorter sessions (quicker)
@@ -22,7 +22,20 @@ refresh shows the rendered frame as it is, no margin), then prints
   motion-to-frame latency (IMU sees the motion -> the depth-driven frame);
 - ``step``: the display loop's time per refresh on one core (CPU time: the filter and
   prediction, ``stabilise``; the homography warp, ``reproject``), bilinear and nearest
-  (target <= 3 ms), and the alternatives measured on one frame.
+  (target <= 3 ms), and the alternatives measured on one frame;
+- ``sweep``: tremor (``--tremors``, degrees RMS), roll (``--rolls``) and ``--seeds``
+  seeds per setting. The content's up is scored on every seed without the warp
+  pipeline (:mod:`adaproj_edge.app.upright_score`: the runtime's IMU chain on the
+  simulator's IMU stream, walls at ``--yaws``; fast); ``--full N`` also simulates and
+  replays the first N seeds of each setting over a wall at a yaw (a mesh), the
+  ``corner`` and a ``cylinder-convex`` (upright, jitter ratio, motion-to-photon). Prints
+  the worst case of each figure with its seed. A deliberate roll of 20 degrees is
+  scored the same way (``roll-follow``: seconds after the roll's start until the up
+  is within a degree, the worst seed). The full sweep:
+
+      tools/bench_handheld.py --only sweep --seeds 10 --full 10
+
+  a reduced one (the default): ``--seeds 10 --full 0``.
 """
 
 from __future__ import annotations
@@ -48,7 +61,8 @@ from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_s
 from adaproj_edge.threads import apply_thread_policy  # noqa: E402
 
 SCENES = {"wall 1.5 m": "plane", "column": "cylinder-convex", "corner": "corner"}
-FIGURES = ("jitter", "drift", "upright", "latency", "step")
+FIGURES = ("jitter", "drift", "upright", "latency", "step", "sweep")
+FULL_SCENES = {"wall (yaw 35)": "wall-yaw", "corner": "corner", "curved": "cylinder-convex"}
 
 
 def simulate(out: Path, surface: str, hand: HandMotion, seed: int) -> Path:
@@ -197,12 +211,122 @@ def step() -> None:
     print(f"  frame copy (the floor): {cpu(lambda: np.copyto(out, frame)):.3f} ms")
 
 
+def _wall_mesh(tmp: Path, yaw_deg: float) -> str:
+    """A plane wall 1.5 m ahead turned ``yaw_deg`` about the vertical, as a mesh file."""
+    from adaproj_edge.geometry.mesh_surface import MeshSurface, ply_bytes
+
+    y = np.radians(yaw_deg)
+    c, s = np.cos(y), np.sin(y)
+    corners = [(-3.0, -2.0), (3.0, -2.0), (3.0, 2.0), (-3.0, 2.0)]
+    v = np.array([[x * c, yy, 1.5 + x * s] for x, yy in corners])
+    mesh = MeshSurface("wall-yaw", v, np.array([[0, 1, 2], [0, 2, 3]]))
+    path = tmp / f"wall-yaw-{yaw_deg:g}.ply"
+    path.write_bytes(ply_bytes(mesh))
+    return str(path)
+
+
+def sweep(
+    offset: float,
+    tmp: Path,
+    seconds: float,
+    tremors: list[float],
+    rolls: list[float],
+    seeds: int,
+    yaws: list[float],
+    full: int,
+) -> None:
+    from adaproj_edge.app.upright_score import trace_upright, wall_normal
+    from adaproj_edge.session.simulator import ImuNoise
+
+    noise = ImuNoise(accel_bias_sigma=offset)
+
+    print(
+        f"sweep: tremor {tremors} deg RMS, roll {rolls} deg, {seeds} seeds per setting, "
+        f"{seconds:g} s sessions (targets: upright <= 1 deg on walls, <= 1.5 deg on corners, "
+        "jitter ratio <= 0.2, motion-to-photon p95 <= 20 ms)"
+    )
+    print(
+        f"  up alone (no warps), walls at yaw {yaws}, accelerometer offset {offset} m/s^2 "
+        "RMS: worst / median of the seeds' max"
+    )
+    cpu = time.process_time()
+    overall: tuple[float, str] = (0.0, "")
+    for tremor in tremors:
+        for roll in rolls:
+            worst: tuple[float, str] = (0.0, "")
+            maxima = []
+            for seed in range(seeds):
+                hand = HandMotion(seconds, seed=seed, tremor_deg=tremor, roll_deg=roll)
+                trace = trace_upright(hand, seed, noise)
+                for yaw in yaws:
+                    err = float(trace.error_deg(wall_normal(yaw))[trace.still].max())
+                    maxima.append(err)
+                    worst = max(worst, (err, f"seed {seed}, yaw {yaw:g}"))
+            overall = max(overall, (worst[0], f"tremor {tremor}, roll {roll}, {worst[1]}"))
+            print(
+                f"    tremor {tremor:4.2f} roll {roll:4.1f}: worst {worst[0]:.2f} deg "
+                f"({worst[1]}), median {np.median(maxima):.2f} deg"
+            )
+    print(f"  worst upright (up alone): {overall[0]:.2f} deg at {overall[1]}")
+    follow: tuple[float, str] = (0.0, "")
+    for tremor in tremors:
+        for seed in range(seeds):
+            hand = HandMotion(
+                5.0, seed=seed, tremor_deg=tremor, move_rad=0.0, move_m=0.0,
+                roll_move_deg=20.0, roll_move_at_s=2.5, roll_move_s=0.4,
+            )  # fmt: skip
+            trace = trace_upright(hand, seed, noise, every=1, from_s=2.5)
+            err = trace.error_deg(wall_normal(0.0))
+            late = trace.t[err > 1.0]
+            took = float(late.max() - 2.5) if late.size else 0.0
+            follow = max(follow, (took, f"tremor {tremor}, seed {seed}"))
+    print(f"  roll-follow (20 deg in 0.4 s): within 1 deg after {follow[0]:.2f} s at {follow[1]}")
+    print(f"  ({time.process_time() - cpu:.0f} s CPU)")
+    if full <= 0:
+        return
+    print(f"  full pipeline, first {full} seeds of each setting:")
+    worst_f: dict[str, tuple[float, str]] = {}
+    for tremor in tremors:
+        for roll in rolls:
+            for seed in range(full):
+                for label, surface in FULL_SCENES.items():
+                    name = _wall_mesh(tmp, 35.0) if surface == "wall-yaw" else surface
+                    hand = HandMotion(seconds, seed=seed, tremor_deg=tremor, roll_deg=roll)
+                    path = simulate(tmp / "sweep.mcap", name, hand, seed)
+                    on = replay(path, True)["handheld"]
+                    where = f"{label}, tremor {tremor}, roll {roll}, seed {seed}"
+                    figures = {
+                        f"upright max, {label}": on["upright_error_deg_max"],
+                        f"jitter ratio, {label}": on["jitter_ratio"],
+                        "motion-to-photon p95 ms": on["motion_to_photon_ms"]["p95"],
+                    }
+                    for k, v in figures.items():
+                        if v is not None and v >= worst_f.get(k, (-1.0, ""))[0]:
+                            worst_f[k] = (float(v), where)
+    for k, (v, where) in sorted(worst_f.items()):
+        print(f"    worst {k}: {v:.3f} ({where})")
+
+
 def main() -> int:
     apply_thread_policy()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=6.0, help="length of each session")
     ap.add_argument("--tremor", type=float, default=0.15, help="hand tremor, degrees RMS")
-    ap.add_argument("--only", nargs="+", choices=FIGURES, default=list(FIGURES))
+    ap.add_argument("--only", nargs="+", choices=FIGURES, default=list(FIGURES[:-1]))
+    ap.add_argument("--tremors", type=float, nargs="+", default=[0.05, 0.15, 0.3, 0.5])
+    ap.add_argument("--rolls", type=float, nargs="+", default=[0.0, 12.0, 30.0])
+    ap.add_argument("--yaws", type=float, nargs="+", default=[0.0, 35.0])
+    ap.add_argument(
+        "--offset",
+        type=float,
+        default=0.1,
+        help="accelerometer zero-g offset, m/s^2 RMS per axis, for the up alone (sweep; "
+        "0.1: uncalibrated, as the session simulator; 0.02: a calibrated unit)",
+    )
+    ap.add_argument("--seeds", type=int, default=10, help="seeds per setting (sweep)")
+    ap.add_argument(
+        "--full", type=int, default=0, help="seeds per setting also replayed in full (sweep)"
+    )
     args = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="bench-handheld-") as d:
         tmp = Path(d)
@@ -216,6 +340,17 @@ def main() -> int:
             upright(tmp, args.seconds, args.tremor)
         if "latency" in args.only:
             latency(tmp, args.seconds, args.tremor)
+        if "sweep" in args.only:
+            sweep(
+                args.offset,
+                tmp,
+                args.seconds,
+                args.tremors,
+                args.rolls,
+                args.seeds,
+                args.yaws,
+                args.full,
+            )
     return 0
 
 

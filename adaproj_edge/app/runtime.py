@@ -52,7 +52,7 @@ listed in :meth:`Runtime.status`, and the next good input clears it.
 The data path of one depth frame: :class:`~adaproj_edge.app.surfaces.SurfaceSource`
 (estimate, average, snap walls) -> :class:`~adaproj_edge.app.warps.WarpSource` (the
 warp planner, the pose cache, the display-map builder; "up" is gravity, from the
-accelerometer) -> ``render_frame`` -> the display loop
+accelerometer and the gyro) -> ``render_frame`` -> the display loop
 (:class:`~adaproj_edge.app.display_loop.DisplayLoop`), which shows the last frame at
 every refresh of the projector, stabilised with the gyro. The runtime never reads a
 clock of its own for decisions: time is the injected clock's, so a replay on a
@@ -109,8 +109,8 @@ from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.hal.display import Display
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.link.device import Content
-from adaproj_edge.motion.gravity import GravityFilter
 from adaproj_edge.motion.tracker import MotionTracker
+from adaproj_edge.motion.upright import Upright, UprightSettings
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.fallback import chain_of
 from adaproj_edge.warp.placement import DEFAULT_UP
@@ -158,7 +158,7 @@ class Runtime:
         self.last_warp = LastWarp(state_dir)
         self.telemetry = t = Telemetry(s.history)
         self.motion = MotionTracker(calibration.R_P_I, s.motion)
-        self.gravity = GravityFilter(s.gravity)
+        self.upright = Upright(UprightSettings(gravity=s.gravity))
         self.gestures = Gestures(s.double_press_s, s.long_press_s, s.calibrate_hold_s)
         self.surfaces = SurfaceSource(calibration, s, t.times)
         self.warps = WarpSource(calibration.projector, s, t)
@@ -261,7 +261,9 @@ class Runtime:
         R = self.calibration.R_P_I
         accel = R @ np.asarray(sample.accel, dtype=np.float64)
         rate = R @ (np.asarray(sample.gyro, dtype=np.float64) - self.motion.bias.value)
-        self.gravity.update(sample.sensor_ns, accel, rate, still=not self.motion.moving)
+        # gravity decides by itself when the accelerometer can be used (the tracker's
+        # "moving" also counts a tremor too strong for the depth average)
+        self.upright.update(sample.sensor_ns, accel, rate)
         if change is True:
             self._motion_ns = sample.receive_ns
             self._event("moving")
@@ -420,7 +422,7 @@ class Runtime:
             s, t = self.settings, self.telemetry
             self.calibration = calibration
             self.motion = MotionTracker(calibration.R_P_I, s.motion)
-            self.gravity = GravityFilter(s.gravity)
+            self.upright = Upright(UprightSettings(gravity=s.gravity))
             self.screen.recalibrate(calibration.projector, calibration.R_P_I)
             self.surfaces = SurfaceSource(calibration, s, t.times)
             self.warps = WarpSource(calibration.projector, s, t)
@@ -453,10 +455,11 @@ class Runtime:
 
     # ------------------------------------------------------------------ warps
     def up(self) -> tuple[float, float, float]:
-        """The warps' "up" in frame P: gravity, once the accelerometer has settled on it
+        """The warps' "up" in frame P: gravity's estimate followed with a dead band and
+        a rate limit (:class:`~adaproj_edge.motion.upright.Upright`), once it is trusted
         (the projector's -y before)."""
-        g = self.gravity.up
-        if not self.gravity.ready or g is None:
+        g = self.upright.up
+        if g is None:
             return DEFAULT_UP
         return (float(g[0]), float(g[1]), float(g[2]))
 

@@ -1,47 +1,96 @@
-"""Which way is up, from the accelerometer: the warp's "up" in the projector frame P.
+"""Which way is up, from the accelerometer and the gyro: gravity in the projector frame P.
 
 At rest the accelerometer measures the specific force, gravity's reaction: a vector
-pointing up (about (0, -9.81, 0) in a level device whose y axis points down). The
-estimate is a complementary filter in frame P: each gyro sample turns it with the
-device (a direction fixed in the world, seen from a turning body), and while the
-device is nearly still (the measured magnitude within ``max_deviation`` of gravity,
-the rate under ``max_rate``) it is pulled towards the measured direction with time
-constant ``tau_s``, which averages the hand's tremor and the sensor noise away.
+pointing up (about (0, -9.81, 0) in a level device whose y axis points down). In the
+hand it measures more: the hand turns the device about the wrist, some 0.3 m behind it,
+and a rotational tremor of 0.3 degrees RMS at 10 Hz swings it on that lever by about
+``r w^2 theta`` = 6 m/s^2 RMS, against 9.8 m/s^2 of gravity. The gyro knows the
+rotation. The estimate is built in three steps:
 
+1. **The lever, taken out.** A point ``rho`` from the centre of rotation accelerates by
+   ``alpha x rho + w x (w x rho)`` (``alpha``: the angular acceleration, the gyro's
+   derivative). ``rho`` is found by recursive least squares (forgetting ``lever_tau_s``)
+   on what the accelerometer measures beyond the current gravity estimate, and that
+   acceleration is removed from every sample (one sample late: ``alpha`` is a central
+   difference). It removes most of the tremor's swing whatever the lever's length, and
+   learns no lever from a device that does not turn (``rho`` stays 0). For the first
+   ``warmup_s`` only the lever is learnt.
+2. **Averaged in a frame that does not turn.** Each corrected sample is turned by the
+   integrated gyro into a frame G fixed in the world (up to the gyro's drift) and
+   low-passed there by ``stages`` first-order low-passes of ``tau_s`` each: the tremor
+   that is left (7-13 Hz) is cut by ``(2 pi f tau)^stages``, while a deliberate turn
+   does not move gravity in G at all: it is followed at once, by the gyro. Until
+   ``tau_s`` of samples have been used, every stage is one running mean of them (a
+   start without a transient).
+3. **Trusted where the device is not being moved.** Samples are weighted down as
+   their magnitude departs from gravity (``1 / (1 + (d / shake))^2``: a knock, a
+   swing the lever does not explain), and not used while the device turns on purpose
+   (the gyro rate low-passed by ``rate_tau_s``, over ``max_rate``, and ``hold_s``
+   after) or while the caller says it moves (``still=False``): a deliberate move
+   accelerates the device slowly, which no low-pass takes out. Meanwhile the gyro
+   carries the estimate.
+
+The estimate in P is the low-passed direction in G turned back by the integrated gyro.
 The accelerometer's zero-g offset tilts the result directly (10 mg is 0.6 degrees):
 a unit's offset must be calibrated for the content to stand upright within a degree.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from adaproj_edge.arrays import FloatArray
-from adaproj_edge.geometry.rotations import rotation_matrix
+from adaproj_edge.motion.prediction import small_rotation
+from adaproj_edge.motion.rates import LowPass2
 
 STANDARD_GRAVITY = 9.80665
 
 
 @dataclass(frozen=True)
 class GravitySettings:
-    """Tuning of the gravity filter (seconds, m/s^2, rad/s).
+    """Tuning of the gravity estimate (seconds, m/s^2, rad/s, metres).
 
     tau_s : float
-        Time constant of the pull towards the measured direction.
-    max_deviation : float
-        Samples whose magnitude is further than this from gravity are not used.
+        Time constant of each low-pass of the specific force in the non-turning frame.
+    stages : int
+        How many of those low-passes in a row.
+    shake : float
+        Magnitude departure from gravity (after the lever is taken out) at which a
+        sample's weight is a quarter.
     max_rate : float
-        Samples taken while the device turns faster than this are not used.
+        Deliberate turning rate (low-passed) over which the accelerometer is not used.
+    rate_tau_s : float
+        Time constant of each of the two low-passes of that rate (the tremor out).
+    hold_s : float
+        Seconds after a deliberate turn before the accelerometer is used again.
+    lever_tau_s : float
+        Memory of the lever's least squares (seconds).
+    max_lever : float
+        The longest lever believed (metres; a longer one is scaled down to it).
+    warmup_s : float
+        Seconds from the first sample while only the lever is learnt (no sample used;
+        the deliberate rate is checked from two of its time constants later).
     settle_s : float
-        Seconds of usable samples before the estimate is trusted.
+        Seconds of used samples before the estimate is trusted.
     """
 
-    tau_s: float = 1.0
-    max_deviation: float = 0.5
-    max_rate: float = 0.5
-    settle_s: float = 0.5
+    tau_s: float = 0.25
+    stages: int = 3
+    shake: float = 3.0
+    max_rate: float = 0.04
+    rate_tau_s: float = 0.15
+    hold_s: float = 0.3
+    lever_tau_s: float = 3.0
+    max_lever: float = 1.0
+    warmup_s: float = 0.3
+    settle_s: float = 0.25
+
+
+def _skew(v: FloatArray) -> FloatArray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 class GravityFilter:
@@ -54,49 +103,124 @@ class GravityFilter:
 
     def __init__(self, settings: GravitySettings | None = None) -> None:
         self.settings = settings or GravitySettings()
-        self._up: FloatArray | None = None
+        self._rate = LowPass2(self.settings.rate_tau_s)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the estimate (after an IMU fault)."""
+        self._R = np.eye(3)  # R_G_P: the integrated gyro
+        self._stages: list[FloatArray] | None = None
         self._last_ns: int | None = None
         self._used_s = 0.0
+        self._prev: tuple[FloatArray, FloatArray, float] | None = None  # accel, rate, dt
+        self._prev_rate: FloatArray | None = None
+        self._normal = np.eye(3) * 1e-3  # the lever's normal equations
+        self._rhs = np.zeros(3)
+        self.lever: FloatArray = np.zeros(3)  # rho (3,): centre of rotation -> IMU, metres, frame P
+        self._rate.reset()
+        self._steps = 0
+        self._quiet_s = math.inf  # since the last deliberate turn (none yet)
+        self._age_s = 0.0  # since the first sample
 
     def update(self, t_ns: int, accel: FloatArray, rate: FloatArray, still: bool = True) -> None:
         """One sample: specific force (3,) m/s^2 and angular rate (3,) rad/s, frame P;
-        ``still``: whether the device is held still (only then is gravity measured)."""
+        ``still``: whether the caller sees the device held still (else the accelerometer
+        is not used, the gyro carries the estimate)."""
         s = self.settings
         a = np.asarray(accel, dtype=np.float64)
         w = np.asarray(rate, dtype=np.float64)
         dt = 0.0 if self._last_ns is None else max(0.0, (t_ns - self._last_ns) * 1e-9)
         self._last_ns = t_ns
-        dt = min(dt, 0.1)
-        if self._up is not None and dt > 0:
-            # a world direction seen from a body turning by w: rotates by -w dt
-            self._up = rotation_matrix(w * dt).T @ self._up
-        norm = float(np.linalg.norm(a))
-        usable = abs(norm - STANDARD_GRAVITY) <= s.max_deviation and np.linalg.norm(w) <= s.max_rate
-        if not usable or norm == 0.0:
+        if dt > 0.1:  # a gap: the lever's difference and the samples held are stale
+            self._prev = self._prev_rate = None
+            dt = 0.1
+        if dt > 0:
+            self._R = self._R @ small_rotation(w * dt)
+            self._rate.update(w, dt)
+            self._steps += 1
+            if self._steps % 512 == 0:  # keep R a rotation
+                u, _, vt = np.linalg.svd(self._R)
+                self._R = u @ vt
+        # samples k-1 (accel, rate, dt) and k-2 (rate) kept: sample k-1 is used now
+        prev, prev_rate = self._prev, self._prev_rate
+        self._prev = (a, w, dt)
+        self._prev_rate = None if prev is None else prev[1]
+        if prev is None or prev_rate is None or dt <= 0 or prev[2] <= 0:
+            if self._stages is None and prev is None:
+                self._start(a)
             return
-        meas = a / norm
-        if self._up is None:
-            self._up = meas  # a first guess, moving or not
+        # the previous sample, its angular acceleration a central difference
+        a_prev, w_prev, dt_prev = prev
+        alpha = (w - prev_rate) / (dt + dt_prev)
+        f = self._unlevered(a_prev, w_prev, alpha, dt_prev)
+        if self._stages is None:
+            self._start(f)
             return
-        if not still:
+        self._age_s += dt_prev
+        if self._age_s < s.warmup_s:
+            # the lever is being learnt (its swing still in the samples); the rate's
+            # low-pass starts with a transient of the tremor (not checked for two of its
+            # time constants more)
             return
-        self._used_s += dt
-        k = min(1.0, dt / min(max(self._used_s, dt), s.tau_s))
-        up = self._up + k * (meas - self._up)
-        self._up = up / np.linalg.norm(up)
+        settling = self._age_s < s.warmup_s + 2.0 * s.rate_tau_s  # the low-pass's start
+        turning = not settling and float(np.linalg.norm(self._rate.value)) > s.max_rate
+        if not still or turning:
+            self._quiet_s = 0.0
+            return
+        self._quiet_s += dt_prev
+        if self._quiet_s < s.hold_s:
+            return
+        dev = abs(float(np.linalg.norm(f)) - STANDARD_GRAVITY) / s.shake
+        weight = 1.0 / (1.0 + dev) ** 2
+        first = self._used_s == 0.0
+        self._used_s += dt_prev * weight
+        # R_G_P one sample ago: this sample's rotation undone
+        R_prev = self._R @ small_rotation(-w * dt)
+        x = R_prev @ f
+        k = 1.0 if first else min(1.0, weight * dt_prev / min(self._used_s, s.tau_s))
+        if self._used_s < s.tau_s:  # starting: one running mean, every stage at it
+            mean = self._stages[0]
+            mean += k * (x - mean)
+            for stage in self._stages[1:]:
+                stage[:] = mean
+            return
+        for stage in self._stages:
+            stage += k * (x - stage)
+            x = stage
 
-    def reset(self) -> None:
-        """Forget the estimate (after an IMU fault)."""
-        self._up = None
-        self._last_ns = None
-        self._used_s = 0.0
+    def _start(self, f: FloatArray) -> None:
+        g = self._R @ f
+        self._stages = [g.copy() for _ in range(self.settings.stages)]
+
+    def _unlevered(self, f: FloatArray, w: FloatArray, alpha: FloatArray, dt: float) -> FloatArray:
+        """``f`` with the swing about the centre of rotation taken out; the lever's
+        least squares updated with it."""
+        s = self.settings
+        A = _skew(alpha) + _skew(w) @ _skew(w)  # the acceleration of rho: A @ rho
+        up = self.up
+        if up is not None:
+            resid = f - up * STANDARD_GRAVITY
+            forget = math.exp(-dt / s.lever_tau_s)
+            self._normal = forget * self._normal + A.T @ A
+            self._rhs = forget * self._rhs + A.T @ resid
+            lever = np.asarray(
+                np.linalg.solve(self._normal + np.eye(3) * 1e-3, self._rhs), np.float64
+            )
+            n = float(np.linalg.norm(lever))
+            self.lever = lever if n <= s.max_lever else lever * float(s.max_lever / n)
+        out: FloatArray = f - A @ self.lever
+        return out
 
     @property
     def ready(self) -> bool:
-        """Whether enough still samples have been seen to trust :attr:`up`."""
-        return self._up is not None and self._used_s >= self.settings.settle_s
+        """Whether enough samples have been used to trust :attr:`up`."""
+        return self._stages is not None and self._used_s >= self.settings.settle_s
 
     @property
     def up(self) -> FloatArray | None:
-        """Up (3,) as a unit vector in frame P, None before any usable sample."""
-        return None if self._up is None else self._up.copy()
+        """Up (3,) as a unit vector in frame P, None before any sample."""
+        if self._stages is None:
+            return None
+        g = self._R.T @ self._stages[-1]
+        n = float(np.linalg.norm(g))
+        return None if n == 0.0 else g / n

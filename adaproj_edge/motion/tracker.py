@@ -3,7 +3,9 @@
 The device counts as *moving* as soon as it turns on purpose (the gyro rate, its bias
 removed, low-passed so that the hand's 8-12 Hz tremor does not count:
 :class:`~adaproj_edge.motion.rates.LowPass2`, over ``max_rate``) or shakes (the
-accelerometer's jitter over a short window), and as *settled* again only after
+jitter over a short window of the accelerometer low-passed with ``accel_lowpass_s``:
+the tremor swings a hand-held device on the wrist's lever by several m/s^2 at 8-12 Hz,
+which is not a move), and as *settled* again only after
 ``settle_s`` of stillness, so a hand that is nearly still does not toggle between the
 two. The orientation is the integrated gyro (bias learnt while still,
 :class:`~adaproj_edge.motion.rates.GyroBias`), rotated into the projector frame P; it
@@ -43,13 +45,15 @@ def is_still(
 class MotionSettings:
     """The motion detector: its window and hysteresis (seconds), the deliberate rate
     (rad/s, after a two-stage low-pass of ``lowpass_s``) and accelerometer jitter
-    (m/s^2, standard deviation over the window) under which the device is still."""
+    (m/s^2, standard deviation over the window of the accelerometer after a two-stage
+    low-pass of ``accel_lowpass_s``) under which the device is still."""
 
     window_s: float = 0.2
     settle_s: float = 0.3
     max_rate: float = 0.03
     max_accel_std: float = 0.3
     lowpass_s: float = 0.08
+    accel_lowpass_s: float = 0.15
 
 
 class MotionTracker:
@@ -64,12 +68,14 @@ class MotionTracker:
     def __init__(self, R_P_I: FloatArray, settings: MotionSettings | None = None) -> None:
         self.R_P_I = np.asarray(R_P_I, dtype=np.float64)
         self.settings = settings or MotionSettings()
-        self._window: deque[ImuSample] = deque()
+        self._window: deque[tuple[int, FloatArray]] = deque()  # low-passed accel
         self._last_ns: int | None = None
         self._still_since: int | None = None
         self.moving = False
         self.orientation = np.eye(3)  # R_W_P, W = P at the first sample
         self._rate = LowPass2(self.settings.lowpass_s)
+        self._accel = LowPass2(self.settings.accel_lowpass_s)
+        self._accel_started = False
         self.bias = GyroBias(lowpass_s=self.settings.lowpass_s)
 
     def update(self, sample: ImuSample) -> bool | None:
@@ -77,21 +83,27 @@ class MotionTracker:
         settled, None when nothing changed."""
         t = sample.sensor_ns
         gyro = np.asarray(sample.gyro, dtype=np.float64)
+        accel = np.asarray(sample.accel, dtype=np.float64)
+        if not self._accel_started:  # the low-pass starts at the first sample, not 0
+            self._accel.update(accel, self._accel.tau_s)
+            self._accel.update(accel, self._accel.tau_s)
+            self._accel_started = True
         if self._last_ns is not None and t > self._last_ns:
             dt = min((t - self._last_ns) * 1e-9, 0.1)
             w = gyro - self.bias.value
             self.orientation = self.orientation @ rotation_matrix(self.R_P_I @ w * dt)
             self._rate.update(w, dt)
+            self._accel.update(accel, dt)
             self.bias.update(gyro, dt)
         self._last_ns = t
-        self._window.append(sample)
+        self._window.append((t, self._accel.value.copy()))
         horizon = t - int(self.settings.window_s * 1e9)
-        while self._window and self._window[0].sensor_ns < horizon:
+        while self._window and self._window[0][0] < horizon:
             self._window.popleft()
         if len(self._window) < 8:
             return None  # too few samples to judge (start, or after a fault)
         s = self.settings
-        jitter = float(np.max(np.std(np.array([x.accel for x in self._window]), axis=0)))
+        jitter = float(np.max(np.std(np.array([x[1] for x in self._window]), axis=0)))
         still = self.deliberate_rate <= s.max_rate and jitter <= s.max_accel_std
         if still:
             if self._still_since is None:
@@ -116,6 +128,8 @@ class MotionTracker:
         self._last_ns = None
         self._still_since = None
         self._rate.reset()
+        self._accel.reset()
+        self._accel_started = False
         self.bias.reset_stillness()
 
     @property

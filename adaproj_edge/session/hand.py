@@ -17,6 +17,13 @@ so on (the user's intent). On top, all the time:
   1/sqrt(f) amplitude spectrum, ``sway_deg`` RMS about each axis (and ``tremor_m``
   times 5 along each).
 
+Every rotation (the moves, the tremor, the sway) turns the device about the wrist,
+``lever_m`` behind it along its optical axis, not about its own centre: the device
+swings on that lever, and its accelerometer feels it. At 0.3 degrees RMS of 10 Hz
+tremor and 0.3 m, that is about r w^2 theta = 6 m/s^2 RMS across the lever, against
+9.8 m/s^2 of gravity: the accelerometer alone is a poor gravity sensor in the hand
+(``lever_m = 0`` turns the device about its centre, as before).
+
 Everything follows from ``seed``; the spectra are continuous functions of time, so
 the true pose is known at any instant (e.g. when a frame is lit).
 """
@@ -78,6 +85,11 @@ class HandMotion:
     tremor_m : RMS tremor translation along each axis (metres)
     sway_deg : RMS slow sway about each axis (degrees)
     roll_deg : the device's roll about its optical axis, held the whole time
+    roll_move_deg, roll_move_at_s, roll_move_s : float
+        A deliberate roll about the optical axis by ``roll_move_deg`` (minimum jerk),
+        starting at ``roll_move_at_s`` and lasting ``roll_move_s`` (0: none)
+    lever_m : distance from the wrist (the centre of every rotation) to the device,
+        along the device's optical axis (metres)
     still_s, move_s : durations of the still and moving phases
     hold_after : int, optional
         After this many moves the hand holds still to the end (None: never).
@@ -91,6 +103,10 @@ class HandMotion:
     tremor_m: float = 0.00002
     sway_deg: float = 0.025
     roll_deg: float = 0.0
+    roll_move_deg: float = 0.0
+    roll_move_at_s: float = 0.0
+    roll_move_s: float = 0.5
+    lever_m: float = 0.3
     still_s: float = 1.0
     move_s: float = 0.8
     hold_after: int | None = None
@@ -166,14 +182,38 @@ class HandMotion:
 
     @property
     def R_roll(self) -> FloatArray:
-        """The device's roll (3, 3): rotation about its optical axis (z)."""
+        """The device's roll at the start (3, 3): rotation about its optical axis (z)."""
         return rotation_matrix(np.array([0.0, 0.0, np.deg2rad(self.roll_deg)]))
 
+    def roll(self, t: FloatArray) -> FloatArray:
+        """The device's roll (N, 3, 3) at times ``t`` (N,): the start's, then the
+        deliberate roll (if any)."""
+        t = np.asarray(t, dtype=np.float64)
+        tau = (t - self.roll_move_at_s) / max(self.roll_move_s, 1e-9)
+        deg = self.roll_deg + self.roll_move_deg * _min_jerk(tau)
+        z = np.zeros((len(t), 3))
+        z[:, 2] = np.deg2rad(deg)
+        return rodrigues(z)
+
+    def steady_rotation(self, t: FloatArray) -> FloatArray:
+        """``R_W_P`` (N, 3, 3) without the tremor: what a stabiliser lets through."""
+        _, _, sway = self._params
+        t = np.asarray(t, dtype=np.float64)
+        x = self.intent(t) + sway.value(t)
+        out: FloatArray = self.roll(t) @ rodrigues(x[:, 3:])
+        return out
+
     def pose(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """``R_W_P`` (N, 3, 3) and ``t_W_P`` (N, 3) at times ``t`` (N,) seconds."""
+        """``R_W_P`` (N, 3, 3) and ``t_W_P`` (N, 3) at times ``t`` (N,) seconds.
+
+        The rotation turns the device about the wrist (``lever_m`` behind it): the
+        wrist stays at the translation part of :meth:`state` plus its rest offset, the
+        device at the end of the lever."""
         x = self.state(t)
-        R: FloatArray = self.R_roll @ rodrigues(x[:, 3:])
-        return R, x[:, :3]
+        R: FloatArray = self.roll(t) @ rodrigues(x[:, 3:])
+        wrist_p = np.array([0.0, 0.0, -self.lever_m])  # the wrist, in P
+        p: FloatArray = x[:, :3] + self.R_roll @ wrist_p - R @ wrist_p
+        return R, p
 
     def imu_truth(self, t: FloatArray, h: float = 5e-4) -> tuple[FloatArray, FloatArray]:
         """Specific force (N, 3) m/s^2 and angular rate (N, 3) rad/s, both in frame P."""

@@ -203,18 +203,7 @@ def simulate(scene: Scene, calibration: Calibration, settings: SimulationSetting
     hand = settings.hand()
     recs: list[tuple[int, int, Record]] = []
     # --- IMU at its output data rate
-    dt = 1.0 / settings.imu.rate_hz
-    t_imu = np.arange(0.0, settings.seconds, dt)
-    f_p, w_p = hand.imu_truth(t_imu)
-    R_I_P = calibration.R_P_I.T
-    n = settings.imu_noise
-    accel_sigma, gyro_sigma = n.sigmas(settings.imu.rate_hz)
-    acc = f_p @ R_I_P.T + rng.normal(scale=n.accel_bias_sigma, size=3)
-    acc += rng.normal(scale=accel_sigma, size=acc.shape)
-    gyr = w_p @ R_I_P.T + rng.normal(scale=n.gyro_bias_sigma, size=3)
-    gyr += rng.normal(scale=gyro_sigma, size=gyr.shape)
-    acc = _quantise(acc, settings.imu.accel_scale)
-    gyr = _quantise(gyr, settings.imu.gyro_scale)
+    t_imu, acc, gyr = imu_readings(hand, calibration.R_P_I, settings, rng)
     R_all, p_all = hand.pose(t_imu)
     rx_all = _fifo_receive(t_imu, settings.imu_timing, rng)
     for i, t in enumerate(t_imu):
@@ -253,6 +242,26 @@ def simulate(scene: Scene, calibration: Calibration, settings: SimulationSetting
     return [r for _, _, r in recs]
 
 
+def imu_readings(
+    hand: HandMotion, R_P_I: FloatArray, settings: SimulationSettings, rng: np.random.Generator
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """What the IMU reports of ``hand``'s motion over ``settings.seconds``: sample times
+    (N,) seconds, accelerometer (N, 3) m/s^2 and gyro (N, 3) rad/s in the IMU frame
+    (noise, zero offsets drawn from ``rng`` and quantisation included)."""
+    t_imu = np.arange(0.0, settings.seconds, 1.0 / settings.imu.rate_hz)
+    f_p, w_p = hand.imu_truth(t_imu)
+    R_I_P = np.asarray(R_P_I, dtype=np.float64).T
+    n = settings.imu_noise
+    accel_sigma, gyro_sigma = n.sigmas(settings.imu.rate_hz)
+    acc = f_p @ R_I_P.T + rng.normal(scale=n.accel_bias_sigma, size=3)
+    acc += rng.normal(scale=accel_sigma, size=acc.shape)
+    gyr = w_p @ R_I_P.T + rng.normal(scale=n.gyro_bias_sigma, size=3)
+    gyr += rng.normal(scale=gyro_sigma, size=gyr.shape)
+    acc = _quantise(acc, settings.imu.accel_scale)
+    gyr = _quantise(gyr, settings.imu.gyro_scale)
+    return t_imu, acc, gyr
+
+
 def _fifo_receive(t: FloatArray, timing: ImuTiming, rng: np.random.Generator) -> FloatArray:
     """Receive times (ns from the start) of samples taken at ``t`` (s): each batch is
     read at the first read after it, every sample of a batch arriving together."""
@@ -274,6 +283,7 @@ def hand_metadata(hand: HandMotion) -> dict[str, Any]:
         "tremor_deg_rms": hand.tremor_deg,
         "sway_deg_rms": hand.sway_deg,
         "roll_deg": hand.roll_deg,
+        "lever_m": hand.lever_m,
         "gravity_w": [float(x) for x in GRAVITY_W],
         "t0_ns": T0_NS,
     }

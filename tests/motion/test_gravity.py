@@ -1,4 +1,5 @@
-"""The gravity filter: up in frame P from the accelerometer, carried by the gyro."""
+"""The gravity estimate: up in frame P from the accelerometer, the gyro carrying it and
+the lever of a hand-held device taken out."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import numpy as np
 
 from adaproj_edge.geometry.rotations import rotation_matrix
 from adaproj_edge.motion.gravity import STANDARD_GRAVITY, GravityFilter
+from adaproj_edge.session.hand import HandMotion
 
 RATE_HZ = 416.0
 
@@ -23,7 +25,7 @@ def test_a_rolled_still_device_finds_up_despite_noise() -> None:
     assert f.up is None and not f.ready
     for k in range(int(2 * RATE_HZ)):
         a = up_true * STANDARD_GRAVITY + rng.normal(scale=0.3, size=3)
-        f.update(int(k * 1e9 / RATE_HZ), a, rng.normal(scale=0.05, size=3))
+        f.update(int(k * 1e9 / RATE_HZ), a, rng.normal(scale=0.002, size=3))
     assert f.ready and f.up is not None
     assert _angle(f.up, up_true) < 0.3
 
@@ -40,11 +42,33 @@ def test_the_estimate_turns_with_the_device_between_accelerometer_updates() -> N
     assert f.up is not None and _angle(f.up, R.T @ up0) < 0.05
 
 
-def test_accelerations_far_from_gravity_are_not_used_and_reset_forgets() -> None:
+def test_reset_forgets() -> None:
     f = GravityFilter()
-    f.update(0, np.array([0.0, -20.0, 0.0]), np.zeros(3))
-    assert f.up is None
-    f.update(1_000_000, np.array([0.0, -STANDARD_GRAVITY, 0.0]), np.zeros(3))
+    f.update(0, np.array([0.0, -STANDARD_GRAVITY, 0.0]), np.zeros(3))
     assert f.up is not None
     f.reset()
     assert f.up is None
+
+
+def test_a_shaking_hand_on_a_wrist_lever_leaves_gravity_within_a_fifth_of_a_degree() -> None:
+    """0.5 degrees RMS of tremor about a wrist 0.3 m behind: the accelerometer swings by
+    ~7 m/s^2 RMS (the sample-by-sample direction is off by tens of degrees); the lever
+    is learnt and taken out, the rest averaged in a frame that does not turn."""
+    hand = HandMotion(4.0, seed=3, tremor_deg=0.5, roll_deg=20.0, move_rad=0.0, move_m=0.0)
+    t = np.arange(0.0, hand.seconds, 1 / RATE_HZ)
+    f_p, w_p = hand.imu_truth(t)
+    R, _ = hand.pose(t)
+    up_true = np.einsum("nji,j->ni", R, np.array([0.0, -1.0, 0.0]))
+    raw = np.degrees(
+        np.arccos(np.clip(np.sum(f_p * up_true, 1) / np.linalg.norm(f_p, axis=1), -1, 1))
+    )
+    assert np.percentile(raw, 90) > 20.0  # the accelerometer alone: useless
+    g = GravityFilter()
+    errs = []
+    for k in range(len(t)):
+        g.update(int(t[k] * 1e9), f_p[k], w_p[k])
+        if t[k] >= 1.0:
+            assert g.ready and g.up is not None
+            errs.append(_angle(g.up, up_true[k]))
+    assert max(errs) < 0.2
+    assert abs(float(np.linalg.norm(g.lever)) - 0.3) < 0.02
