@@ -8,14 +8,19 @@ measured, its peak resident memory read from ``/proc``) with stock clients.
 from __future__ import annotations
 
 import asyncio
+import fcntl
 import logging
+import os
+import termios
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import pytest
+from smp.os_management import EchoWriteRequest
 from smpclient import SMPClient
 from smpclient.generics import error, success
 from smpclient.requests.file_management import FileUpload
@@ -23,10 +28,12 @@ from smpclient.transport.serial import SMPSerialTransport
 
 from adaproj_edge import fileio
 from adaproj_edge.errors import ImageError, LinkError
-from adaproj_edge.hal.serial import PtyPair
+from adaproj_edge.hal.serial import FdPort, PtyPair
 from adaproj_edge.link import client
 from adaproj_edge.link.device import StandaloneDevice
-from adaproj_edge.link.host_requests import ActivateWrite, ListRead, StatusRead
+from adaproj_edge.link.framing import FrameDecoder, encode_frame
+from adaproj_edge.link.host_requests import ActivateWrite, ListRead, ScreenshotRead, StatusRead
+from adaproj_edge.link.message import HEADER
 from adaproj_edge.link.server import Server, serve
 from adaproj_edge.link.store import ContentStore, Limits
 from tests.link.conftest import Running
@@ -239,3 +246,100 @@ def test_adaproj_link_starts_with_a_mistyped_active_record(tmp_path: Path) -> No
 async def _status(port: str) -> Any:
     async with client.connect(port) as c:
         return await client.call(c, StatusRead())
+
+
+# ---- a host that hangs up or stops reading -------------------------------------------
+
+TIOCVHANGUP = 0x5437
+"""Hang up a tty (as the USB gadget's driver does when the cable is pulled)."""
+
+
+def _echo_over(host: FdPort, decoder: FrameDecoder, seq: int, wait_s: float = 10.0) -> bool:
+    """Send an echo as raw frames from the pty's master side, once a second (what is
+    sent while the device reopens its port is lost, as on a real line), until it is
+    answered; whether it was."""
+    end = time.monotonic() + wait_s
+    while time.monotonic() < end:
+        host.write(encode_frame(bytes(EchoWriteRequest(d="ping", sequence=seq).BYTES)))
+        again = time.monotonic() + 1.0
+        while time.monotonic() < again:
+            if any(reply[6] == seq for reply in decoder.feed(host.read(4096, 0.1))):
+                return True
+    return False
+
+
+def test_the_serial_port_serves_the_next_host_after_a_hang_up(tmp_path: Path) -> None:
+    """``adaproj link --port`` (pyserial, as on /dev/ttyGS0): the tty is hung up under
+    it, as when the host goes away; the next host is answered by the same process."""
+    with PtyPair.open() as pty, open(tmp_path / "link.log", "w") as log:
+        link = LinkProcess(pty, tmp_path / "store", log, port=True)
+        link.start()
+        try:
+            host, decoder = FdPort(pty.master), FrameDecoder(65536)
+            assert _echo_over(host, decoder, 1)
+            fd = os.open(pty.path, os.O_RDWR | os.O_NOCTTY)
+            try:
+                fcntl.ioctl(fd, TIOCVHANGUP)
+            except PermissionError:
+                pytest.skip("hanging up a tty needs CAP_SYS_ADMIN")
+            finally:
+                os.close(fd)
+            answered = _echo_over(host, decoder, 2)
+            alive = link.alive()
+        finally:
+            link.wait_dead()
+    assert alive and answered, "".join(link.lines[-5:])
+    assert any("hung up" in line for line in link.lines)
+
+
+def test_a_host_that_stops_reading_does_not_end_the_link(tmp_path: Path) -> None:
+    """``adaproj link --fd``: a host sends requests and never reads the replies; the
+    device drops them after one wait and serves the next host (a stock client)."""
+    with PtyPair.open() as pty, open(tmp_path / "link.log", "w") as log:
+        link = LinkProcess(pty, tmp_path / "store", log, "--buf-size", "4096")
+        link.start()
+        try:
+            mute = os.open(pty.path, os.O_RDWR | os.O_NOCTTY)
+            asks = b"".join(
+                encode_frame(bytes(ScreenshotRead(off=0, sequence=i % 256).BYTES))
+                for i in range(60)  # 60 replies of ~4 KB: more than the tty buffers
+            )
+            os.write(mute, asks)
+            end = time.monotonic() + 20
+            while time.monotonic() < end and not any("dropped" in x for x in link.lines):
+                time.sleep(0.1)
+            os.close(mute)
+            termios.tcflush(pty.slave, termios.TCIOFLUSH)  # the old host's buffers go
+            status = asyncio.run(_status(pty.path))
+            alive = link.alive()
+        finally:
+            link.wait_dead()
+    assert alive, "".join(link.lines[-5:])
+    assert any("reply dropped" in line for line in link.lines)
+    assert status.link["requests"] >= 60
+
+
+# ---- refusals by the thousand ---------------------------------------------------------
+
+
+def test_distinct_refusals_keep_the_log_bounded(
+    server: Server, caplog: pytest.LogCaptureFixture
+) -> None:
+    """30,000 requests refused, each for a different (group, command): the log stays
+    small, no line grows, and the 5000 last take no longer than the 5000 first."""
+    times = []
+    with caplog.at_level(logging.WARNING, logger="adaproj_edge.link"):
+        for block in range(6):
+            t0 = time.perf_counter()
+            for i in range(block * 5000, (block + 1) * 5000):
+                group, command = 100 + i // 256, i % 256  # no such group: refused
+                reply = server.handle(HEADER.pack(2, 0, 0, group, i % 256, command))
+                assert reply is not None
+            times.append(time.perf_counter() - t0)
+        server.handle(bytes(EchoWriteRequest(d="ok").BYTES))
+    lines = [r.getMessage() for r in caplog.records]
+    assert server.counters["errors"] == 30_000
+    assert max(map(len, lines)) < 1000 and sum(map(len, lines)) < 50_000, len(lines)
+    assert len(server._refusals.reasons) <= server._refusals.kinds + 1
+    print(f"seconds per 5000 refusals: {' '.join(f'{t:.2f}' for t in times)}")
+    assert times[-1] < 2 * times[0] + 0.5
