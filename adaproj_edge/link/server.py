@@ -415,11 +415,13 @@ def serve(
     """
     log.info("SMP server up (buffer %d bytes)", server.buf_size)
     lost = BurstLog(log, "replies the host did not take", first=1)
+    failed = BurstLog(log, "reads of the serial port failed", first=1)
     while stop is None or not stop.is_set():
         try:
             data = port.read(65536, poll)
+            failed.ok()
         except DeviceError as e:  # the port's own trouble: wait, then try again
-            lost.bad("read failed", "reading the serial port failed: %s", e)
+            failed.bad("read failed", "reading the serial port failed: %s", e)
             time.sleep(poll)
             continue
         for message in server.decoder.feed(data):
