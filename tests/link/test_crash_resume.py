@@ -65,7 +65,7 @@ def run_campaign(uploads: int, root: Path, seed: int = 1) -> Counter[str]:
     shown = png_bytes(96, 64, seed=1000)
     expected = {"shown.png": shown}
     with PtyPair.open() as pty, open(root / "link.log", "w") as log:
-        link = LinkProcess(pty, store, log)
+        link = LinkProcess(pty, store, log, "--buf-size", "4096")
         link.start()
         try:
             asyncio.run(_resume_and_check(pty.path, shown, "shown.png"))
