@@ -18,9 +18,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge import MAX_IMAGE_PIXELS as MAX_IMAGE_PIXELS
 from adaproj_edge.errors import ImageError, InputError
-
-MAX_IMAGE_PIXELS = 40_000_000
 
 IMAGE_FORMATS = {".png": ".png", ".jpg": ".jpg", ".jpeg": ".jpg"}
 """File name extensions :func:`write_image` writes (lower case), and their encoders."""
@@ -125,22 +124,31 @@ def _write_encoded(path: str | os.PathLike[str], image: NDArray[Any], ext: str) 
 
 
 def decode_image(data: bytes, what: str, *, gray: bool = False) -> NDArray[np.uint8]:
-    """Decode PNG/JPEG bytes into uint8 BGR (or gray), refusing decompression bombs."""
-    arr = np.frombuffer(data, dtype=np.uint8)
-    if arr.size == 0:
+    """Decode PNG/JPEG bytes into uint8 BGR (or gray), refusing decompression bombs.
+
+    The size is read from the header as the decoder reads it (:func:`image_size`) and
+    checked before a pixel is decoded; bytes whose size cannot be told that way (another
+    format, a damaged header) are refused without decoding.
+    """
+    if not data:
         raise ImageError(f"{what} is empty")
-    # Read the header first, so a bomb is refused before its pixels are allocated.
     size = _header_size(data)
-    if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
-        raise ImageError(
-            f"{what} is {size[0]}x{size[1]} pixels, more than the {MAX_IMAGE_PIXELS} allowed"
-        )
+    if size is None:
+        if data[:8] == b"\x89PNG\r\n\x1a\n" or data[:2] == b"\xff\xd8":
+            raise ImageError(f"{what}: cannot read the image size from its header (damaged?)")
+        raise ImageError(f"{what} is not a readable image (PNG or JPEG expected)")
+    w, h = size
+    if w * h > MAX_IMAGE_PIXELS:
+        raise ImageError(f"{what} is {w}x{h} pixels, more than the {MAX_IMAGE_PIXELS} allowed")
+    if w < 2 or h < 2:
+        raise ImageError(f"{what} is only {w}x{h} pixels")
     flags = cv2.IMREAD_GRAYSCALE if gray else cv2.IMREAD_COLOR
-    img = cv2.imdecode(arr, flags)
+    try:
+        img = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), flags)
+    except cv2.error:  # OpenCV's own size limit (OPENCV_IO_MAX_IMAGE_PIXELS), a backstop
+        img = None
     if img is None:
         raise ImageError(f"{what} is not a readable image (PNG or JPEG expected)")
-    if img.shape[0] < 2 or img.shape[1] < 2:
-        raise ImageError(f"{what} is only {img.shape[1]}x{img.shape[0]} pixels")
     if img.shape[0] * img.shape[1] > MAX_IMAGE_PIXELS:
         raise ImageError(f"{what} has more than {MAX_IMAGE_PIXELS} pixels")
     return np.asarray(img, dtype=np.uint8)
@@ -201,18 +209,62 @@ def image_size(data: bytes) -> tuple[int, int] | None:
 
 def _header_size(data: bytes) -> tuple[int, int] | None:
     """(width, height) from a PNG or JPEG header, None if it cannot be told cheaply."""
-    if data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 24:
+    if data[:8] == b"\x89PNG\r\n\x1a\n":
+        # libpng reads IHDR, which must be the first chunk
+        if len(data) < 24 or data[12:16] != b"IHDR":
+            return None
         return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
     if data[:2] == b"\xff\xd8":
-        i = 2
-        while i + 9 < len(data):
-            if data[i] != 0xFF:
-                return None
-            marker = data[i + 1]
-            seg = int.from_bytes(data[i + 2 : i + 4], "big")
-            if marker in (0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD):
-                h = int.from_bytes(data[i + 5 : i + 7], "big")
-                w = int.from_bytes(data[i + 7 : i + 9], "big")
-                return w, h
-            i += 2 + seg
+        return _jpeg_size(data)
     return None
+
+
+_JPEG_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+"""Start-of-frame markers (every coding process): the first one carries the size."""
+_JPEG_STANDALONE = frozenset([0x01, *range(0xD0, 0xD8)])
+"""Markers without a length (TEM, RST0..7)."""
+_JPEG_SEGMENTS = frozenset([0xC4, 0xCC, 0xDB, 0xDC, 0xDD, 0xFE, *range(0xE0, 0xF0)])
+"""Markers whose segment libjpeg skips by its length before the frame header: DHT,
+DAC, DQT, DNL, DRI, COM and APP0..15."""
+
+
+def _jpeg_size(data: bytes) -> tuple[int, int] | None:
+    """(width, height) of the frame header libjpeg would read, or None where it would stop.
+
+    Follows ``jdmarker.c``: after SOI, the next marker is found by skipping any bytes
+    that are not 0xFF, then any number of 0xFF fill bytes (``FF 00`` is data, not a
+    marker); segments are skipped by their length; the first SOF gives the size. SOS or
+    EOI before a SOF, a second SOI, an unknown marker or a length below 2 end the
+    header (the decoder refuses the file), and so does the end of the data.
+    """
+    n = len(data)
+    i = 2
+    while True:
+        while True:  # next_marker()
+            j = data.find(b"\xff", i)
+            if j < 0:
+                return None
+            i = j + 1
+            while i < n and data[i] == 0xFF:
+                i += 1
+            if i >= n:
+                return None
+            if data[i] != 0:
+                break
+            i += 1
+        marker = data[i]
+        i += 1
+        if marker in _JPEG_SOF:
+            if i + 7 > n:
+                return None
+            h = int.from_bytes(data[i + 3 : i + 5], "big")
+            w = int.from_bytes(data[i + 5 : i + 7], "big")
+            return w, h
+        if marker in _JPEG_STANDALONE:
+            continue
+        if marker not in _JPEG_SEGMENTS or i + 2 > n:
+            return None
+        length = int.from_bytes(data[i : i + 2], "big")
+        if length < 2:
+            return None
+        i += length

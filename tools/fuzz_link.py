@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Fuzz the link's frame decoder and SMP dispatcher with hypothesis, at length.
 
-Three targets from ``tests/link/fuzz_cases.py`` (the test suite runs a slice of each):
+Eight targets from ``tests/link/fuzz_cases.py`` (the test suite runs a slice of each):
 
 - ``wire``: byte streams (frames of malformed messages, mutated frames, stray
   delimiters, declared lengths up to 65535, noise) through ``FrameDecoder`` into the
@@ -11,6 +11,17 @@ Three targets from ``tests/link/fuzz_cases.py`` (the test suite runs a slice of 
   then one intact frame of a good request: it must be decoded and answered, whatever
   came before it (the decoder lives through the whole run, so every case also follows
   the junk of the one before).
+- ``jpeg``: JPEGs with fill bytes before markers, bytes between segments, fake frame
+  headers in comments: the size read from the header must be the decoder's, or the
+  bytes are refused without decoding.
+- ``refusals``: bursts of requests refused for distinct (group, command) pairs: the
+  server's refusal log keeps at most its few reasons, whatever the burst.
+- ``pending``: uploads begun and abandoned, declaring sizes that fill the quota: a
+  whole new upload of another name still fits.
+- ``state``: any JSON (or bytes) as the saved active record: a server on that store
+  starts and answers.
+- ``hangup``: a port whose host hangs up or stops reading at any point: ``serve``
+  goes on and answers the last good request.
 
 Every input must leave the server standing: no exception, a well-formed reply (same
 group, sequence, command; op + 1) or nothing for what is not a request, never an
@@ -24,7 +35,7 @@ Usage::
 
     .venv/bin/python tools/fuzz_link.py [--examples 100000] [--batch 5000] [--seed 0]
 
-``--examples`` is split evenly between the three targets.
+``--examples`` is split evenly between the targets (``--targets`` picks some).
 """
 
 from __future__ import annotations
@@ -51,13 +62,26 @@ from adaproj_edge.link.server import Server
 from adaproj_edge.link.store import ContentStore, Limits
 from adaproj_edge.threads import apply_thread_policy
 from tests.link.fuzz_cases import (
+    active_records,
     dispatch_target,
+    hangup_target,
+    hangups,
+    jpeg_target,
+    jpegs,
     messages,
+    pending_floods,
+    pending_target,
+    refusal_bursts,
+    refusals_target,
     resync_target,
     resyncs,
+    state_target,
     streams,
     wire_target,
 )
+from tests.link.media import png_bytes
+
+TARGETS = ("wire", "dispatch", "resync", "jpeg", "refusals", "pending", "state", "hangup")
 
 
 def rss_mb() -> float:
@@ -73,9 +97,11 @@ class Target:
 
     def __init__(self, name: str, root: Path) -> None:
         self.name = name
-        store = ContentStore(root / name, Limits(quota=2**20, max_file=2**19))
+        self.root = root / name
+        store = ContentStore(self.root, Limits(quota=2**20, max_file=2**19))
         self.server = Server(store, StandaloneDevice(64, 40), buf_size=2048)
         self.decoder = FrameDecoder(self.server.max_message)
+        self.png = png_bytes(150, 100, seed=11)
         self.seen: Counter[str] = Counter()
         self.count = 0
         self.slowest = 0.0
@@ -94,23 +120,38 @@ class Target:
             "wire": streams(),
             "dispatch": messages(),
             "resync": resyncs(),
+            "jpeg": jpegs(),
+            "refusals": refusal_bursts(),
+            "pending": pending_floods(),
+            "state": active_records,
+            "hangup": hangups(),
+        }
+        run_one: dict[str, Callable[[Any], None]] = {
+            "wire": lambda x: wire_target(self.server, self.decoder, x, self.seen),
+            "dispatch": lambda x: dispatch_target(self.server, x, self.seen),
+            "resync": lambda x: resync_target(self.server, self.decoder, x, self.seen),
+            "jpeg": lambda x: jpeg_target(x, self.seen),
+            "refusals": lambda x: refusals_target(self.server, x, self.seen),
+            "pending": lambda x: pending_target(self.server, x, self.png, self.seen),
+            "state": lambda x: state_target(self.root, x, self.seen),
+            "hangup": lambda x: hangup_target(self.server, x, self.seen),
         }
 
         @seed(batch_seed)
         @config
         @given(strategies[self.name])
         def run(x: Any) -> None:
-            if self.name == "wire":
-                self.timed(lambda: wire_target(self.server, self.decoder, x, self.seen))
-            elif self.name == "resync":
-                self.timed(lambda: resync_target(self.server, self.decoder, x, self.seen))
-            else:
-                self.timed(lambda: dispatch_target(self.server, x, self.seen))
+            self.timed(lambda: run_one[self.name](x))
 
         run()
 
     def summary(self) -> str:
         s, d = self.seen, self.decoder.stats
+        if self.name not in ("wire", "dispatch", "resync"):
+            return (
+                f"{self.name}: {self.count} inputs; {dict(s)}; slowest input "
+                f"{self.slowest * 1000:.1f} ms"
+            )
         return (
             f"{self.name}: {self.count} inputs; replies: {s['success']} success, {s['error']} "
             f"SMP errors, {s['ignored']} ignored (not requests); frames decoded {d.frames}, "
@@ -126,13 +167,20 @@ def main() -> int:
     ap.add_argument("--examples", type=int, default=100_000, help="inputs in all")
     ap.add_argument("--batch", type=int, default=5000, help="inputs per hypothesis run")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--targets", default=",".join(TARGETS), help=f"comma-separated, of {', '.join(TARGETS)}"
+    )
     args = ap.parse_args()
+    names = [t for t in args.targets.split(",") if t]
+    unknown = set(names) - set(TARGETS)
+    if unknown:
+        raise SystemExit(f"unknown targets {sorted(unknown)}; known: {', '.join(TARGETS)}")
     logging.disable(logging.WARNING)  # every refusal is logged; millions of lines otherwise
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory() as tmp:
-        for name in ("wire", "dispatch", "resync"):
+        for name in names:
             target = Target(name, Path(tmp))
-            want = args.examples // 3
+            want = args.examples // len(names)
             i = 0
             while target.count < want:
                 before = target.count

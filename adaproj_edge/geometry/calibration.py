@@ -41,12 +41,17 @@ from typing import Any
 
 import numpy as np
 
+from adaproj_edge import checks
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.fileio import read_input
 from adaproj_edge.geometry.projector import Projector
 
 FORMAT = "adaproj-calibration/1"
+MAX_SIDE = 16384
+"""Pixels a side of the projector's or the depth camera's image, at most."""
+BASELINE = (0.0, 1.0)
+"""The stereo baseline's range, metres (above 0)."""
 
 
 @dataclass(frozen=True)
@@ -72,8 +77,9 @@ class DepthCameraModel:
         K = _matrix(self.K, (3, 3), "depth K")
         if K[0, 0] <= 0 or K[1, 1] <= 0:
             raise InputError("depth intrinsics must have positive focal lengths")
-        if self.width < 2 or self.height < 2 or self.baseline_m <= 0:
-            raise InputError("depth camera size and baseline must be positive")
+        checks.integer(self.width, "depth width", 2, MAX_SIDE)
+        checks.integer(self.height, "depth height", 2, MAX_SIDE)
+        checks.number(self.baseline_m, "depth baseline_m", *BASELINE, above=True)
         object.__setattr__(self, "K", K)
 
     @classmethod
@@ -197,15 +203,24 @@ class Calibration:
         if data.get("format") != FORMAT:
             raise InputError(f"{what}: format must be {FORMAT!r}, got {data.get('format')!r}")
         with field_errors(what):
-            pj, ex = data["projector"], data["extrinsics"]
-            projector = Projector(np.asarray(pj["K"], float), int(pj["width"]), int(pj["height"]))
+            unknown = set(data) - {"format", "projector", "depth", "extrinsics", "quality"}
+            if unknown:
+                raise InputError(f"unknown keys {sorted(map(str, unknown))}")
+            pj, ex = _table(data, "projector"), _table(data, "extrinsics")
+            projector = Projector(
+                np.asarray(pj["K"], float),
+                checks.integer(pj["width"], "[projector] width", 2, MAX_SIDE),
+                checks.integer(pj["height"], "[projector] height", 2, MAX_SIDE),
+            )
             if "depth" in data:
-                dp = data["depth"]
+                dp = _table(data, "depth")
                 depth = DepthCameraModel(
                     np.asarray(dp["K"], float),
-                    int(dp["width"]),
-                    int(dp["height"]),
-                    float(dp.get("baseline_m", 0.075)),
+                    checks.integer(dp["width"], "[depth] width", 2, MAX_SIDE),
+                    checks.integer(dp["height"], "[depth] height", 2, MAX_SIDE),
+                    checks.number(
+                        dp.get("baseline_m", 0.075), "[depth] baseline_m", *BASELINE, above=True
+                    ),
                 )
             else:
                 depth = DepthCameraModel.oak_d()
@@ -225,6 +240,8 @@ class Calibration:
             data = json.loads(text)
         except (ValueError, UnicodeDecodeError) as e:
             raise InputError(f"{what} is not valid JSON: {e}") from None
+        except RecursionError:
+            raise InputError(f"{what}: values nested too deeply") from None
         if not isinstance(data, dict):
             raise InputError(f"{what} must be a JSON object")
         return cls.from_dict(data, what)
@@ -240,7 +257,16 @@ class Calibration:
             data = tomllib.loads(raw.decode("utf-8"))
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
             raise InputError(f"calibration file {path} is not valid TOML: {e}") from None
+        except RecursionError:
+            raise InputError(f"calibration file {path}: values nested too deeply") from None
         return cls.from_dict(data, str(path))
+
+
+def _table(data: dict[str, Any], name: str) -> dict[str, Any]:
+    table = data[name]
+    if not isinstance(table, dict):
+        raise InputError(f"[{name}] must be a table, got {type(table).__name__}")
+    return table
 
 
 @contextmanager
@@ -252,6 +278,8 @@ def field_errors(what: str) -> Iterator[None]:
         raise InputError(f"{what}: missing field {e.args[0]!r}") from None
     except (TypeError, ValueError) as e:
         raise InputError(f"{what}: malformed value ({e})") from None
+    except RecursionError:
+        raise InputError(f"{what}: values nested too deeply") from None
     except InputError as e:
         raise InputError(f"{what}: {e}") from None
 

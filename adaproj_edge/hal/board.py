@@ -42,10 +42,13 @@ when there is one, else the board's nominal ``calibration`` file
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
+from adaproj_edge import checks
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.calibration import Calibration, field_errors
 from adaproj_edge.hal.button import check_key_code
@@ -78,12 +81,9 @@ class DisplayConfig:
     stabilise_margin: float = 0.04
 
     def __post_init__(self) -> None:
-        if not 1.0 <= self.refresh_hz <= 1000.0:
-            raise InputError(f"display refresh_hz must be in [1, 1000], got {self.refresh_hz}")
-        if not 0.0 <= self.stabilise_margin <= 0.2:
-            raise InputError(
-                f"display stabilise_margin must be in [0, 0.2], got {self.stabilise_margin}"
-            )
+        checks.text(self.device, "device")
+        checks.number(self.refresh_hz, "refresh_hz", 1.0, 1000.0)
+        checks.number(self.stabilise_margin, "stabilise_margin", 0.0, 0.2)
 
 
 @dataclass(frozen=True)
@@ -121,6 +121,8 @@ class Board:
             p = boards_dir() / f"{p}.toml"
         try:
             data = tomllib.loads(p.read_text())
+        except RecursionError:
+            raise InputError(f"cannot read board file {p}: values nested too deeply") from None
         except FileNotFoundError:
             known = ", ".join(sorted(b.stem for b in boards_dir().glob("*.toml")))
             raise InputError(f"board file not found: {p} (boards: {known})") from None
@@ -131,33 +133,84 @@ class Board:
 
 
 def _pick(cls: Any, table: dict[str, Any]) -> dict[str, Any]:
-    names = {f.name for f in fields(cls)}
+    return _known(table, {f.name for f in fields(cls)})
+
+
+def _known(table: dict[str, Any], names: set[str]) -> dict[str, Any]:
     unknown = set(table) - names
     if unknown:
         raise InputError(f"unknown keys {sorted(unknown)} (known: {sorted(names)})")
     return table
 
 
+SECTIONS = ("imu", "button", "display", "depth", "serial", "calibrate")
+"""The board file's tables."""
+
+
+@contextmanager
+def _section(name: str) -> Iterator[None]:
+    """Name the table ``[name]`` in any error raised while it is read."""
+    try:
+        yield
+    except KeyError as e:
+        raise InputError(f"[{name}] missing field {e.args[0]!r}") from None
+    except InputError as e:
+        raise InputError(f"[{name}] {e}") from None
+
+
+def _table(data: dict[str, Any], name: str, required: bool = False) -> dict[str, Any]:
+    if name not in data and not required:
+        return {}
+    table = data[name]
+    if not isinstance(table, dict):
+        raise InputError(f"[{name}] must be a table, got {type(table).__name__}")
+    return dict(table)
+
+
 def _parse(data: dict[str, Any], path: Path) -> Board:
-    imu = dict(data["imu"])
-    chip = imu.pop("chip", "lsm6dsox")
-    if chip != "lsm6dsox":
-        raise InputError(f"IMU chip {chip!r} has no driver (supported: lsm6dsox)")
-    bus, address = int(imu.pop("bus")), int(imu.pop("address", ADDRESSES[0]))
-    if address not in ADDRESSES:
-        raise InputError(f"LSM6DSOX address 0x{address:02X} is not 0x6A or 0x6B")
-    config = Lsm6dsoxConfig(**_pick(Lsm6dsoxConfig, imu))
+    _known(data, {"name", "calibration", *SECTIONS})
+    name = checks.text(data["name"], "name")
+    calibration = checks.text(data["calibration"], "calibration")
+    with _section("imu"):
+        imu = _table(data, "imu", required=True)
+        chip = checks.text(imu.pop("chip", "lsm6dsox"), "chip")
+        if chip != "lsm6dsox":
+            raise InputError(f"IMU chip {chip!r} has no driver (supported: lsm6dsox)")
+        bus = checks.integer(imu.pop("bus"), "bus", 0, MAX_I2C_BUS)
+        address = checks.integer(imu.pop("address", ADDRESSES[0]), "address", 0, 0x7F)
+        if address not in ADDRESSES:
+            raise InputError(f"LSM6DSOX address 0x{address:02X} is not 0x6A or 0x6B")
+        config = Lsm6dsoxConfig(**_pick(Lsm6dsoxConfig, imu))
+    with _section("button"):
+        button = _table(data, "button", required=True)
+        _known(button, {"device", "key_code"})
+        button_device = checks.text(button["device"], "device")
+        key_code = check_key_code(checks.integer(button["key_code"], "key_code", 1, 0x2FF))
+    with _section("display"):
+        display = DisplayConfig(**_pick(DisplayConfig, _table(data, "display")))
+    with _section("serial"):
+        serial = _table(data, "serial")
+        _known(serial, {"device"})
+        serial_device = checks.text(serial.get("device", "/dev/ttyGS0"), "device")
+    with _section("depth"):
+        depth = StereoSettings(**_pick(StereoSettings, _table(data, "depth")))
+    with _section("calibrate"):
+        camera = CameraSettings(**_pick(CameraSettings, _table(data, "calibrate")))
     return Board(
-        name=str(data["name"]),
-        calibration_path=(path.parent / str(data["calibration"])).resolve(),
+        name=name,
+        calibration_path=(path.parent / calibration).resolve(),
         imu=ImuSettings(chip, bus, address, config),
-        button_device=str(data["button"]["device"]),
-        key_code=check_key_code(int(data["button"]["key_code"])),
-        display=DisplayConfig(**_pick(DisplayConfig, dict(data.get("display", {})))),
-        serial_device=str(data.get("serial", {}).get("device", "/dev/ttyGS0")),
-        depth=StereoSettings(**_pick(StereoSettings, dict(data.get("depth", {})))),
-        camera=CameraSettings(**_pick(CameraSettings, dict(data.get("calibrate", {})))),
+        button_device=button_device,
+        key_code=key_code,
+        display=display,
+        serial_device=serial_device,
+        depth=depth,
+        camera=camera,
     )
+
+
+MAX_I2C_BUS = 1023
+"""The highest I2C bus number taken (``/dev/i2c-N``)."""
 
 
 def calibration_in_use(

@@ -27,10 +27,12 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge import checks
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import DeviceError, DeviceNotFoundError, InputError
 from adaproj_edge.hal.clock import Clock, VirtualClock
 from adaproj_edge.hal.depth import (
+    SOCKETS,
     OakDepthCamera,
     StereoSettings,
     _dai,
@@ -75,14 +77,14 @@ class CameraSettings:
     camera_latency_ms: float = 60.0
 
     def __post_init__(self) -> None:
-        if self.socket not in ("CAM_A", "CAM_B", "CAM_C", "CAM_D"):
-            raise InputError(f"camera socket {self.socket!r} is not CAM_A..CAM_D")
-        if self.width < 16 or self.height < 16 or self.fps <= 0:
-            raise InputError("the calibration camera needs a size of at least 16x16, fps > 0")
-        if not 1 <= self.exposure_us <= 33_000 or not 100 <= self.iso <= 1600:
-            raise InputError("exposure_us must be 1..33000 and iso 100..1600")
-        if self.display_latency_ms < 0 or self.camera_latency_ms < 0:
-            raise InputError("latencies cannot be negative")
+        checks.text(self.socket, "socket", SOCKETS)
+        checks.integer(self.width, "width", 16, 8192)
+        checks.integer(self.height, "height", 16, 8192)
+        checks.number(self.fps, "fps", 0.0, 240.0, above=True)
+        checks.integer(self.exposure_us, "exposure_us", 1, 33_000)
+        checks.integer(self.iso, "iso", 100, 1600)
+        checks.number(self.display_latency_ms, "display_latency_ms", 0.0, 10_000.0)
+        checks.number(self.camera_latency_ms, "camera_latency_ms", 0.0, 10_000.0)
 
     @property
     def display_latency_ns(self) -> int:

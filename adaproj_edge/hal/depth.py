@@ -21,7 +21,8 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from adaproj_edge.errors import DeviceError, DeviceNotFoundError, InputError
+from adaproj_edge import checks
+from adaproj_edge.errors import DeviceError, DeviceNotFoundError
 from adaproj_edge.geometry.calibration import DepthCameraModel
 from adaproj_edge.hal.clock import Clock, VirtualClock
 from adaproj_edge.hal.recorded import ReplayStream
@@ -96,12 +97,35 @@ class StereoSettings:
     align_to: str = "CAM_A"
 
     def __post_init__(self) -> None:
-        if self.median not in ("MEDIAN_OFF", "KERNEL_3x3", "KERNEL_5x5", "KERNEL_7x7"):
-            raise InputError(f"stereo median {self.median!r} is not a DepthAI median filter")
-        if self.subpixel_fractional_bits not in (3, 4, 5):
-            raise InputError("subpixel fractional bits must be 3, 4 or 5")
-        if not 0 <= self.confidence_threshold <= 255 or self.fps <= 0:
-            raise InputError("stereo confidence threshold must be 0..255 and fps positive")
+        checks.integer(self.width, "width", 16, 4096)
+        checks.integer(self.height, "height", 16, 4096)
+        checks.number(self.fps, "fps", 0.0, 120.0, above=True)
+        checks.text(self.preset, "preset", PRESETS)
+        checks.flag(self.subpixel, "subpixel")
+        checks.integer(self.subpixel_fractional_bits, "subpixel_fractional_bits", 3, 5)
+        checks.flag(self.left_right_check, "left_right_check")
+        checks.integer(self.left_right_threshold, "left_right_threshold", 0, 128)
+        checks.text(self.median, "median", MEDIANS)
+        checks.integer(self.confidence_threshold, "confidence_threshold", 0, 255)
+        checks.flag(self.extended_disparity, "extended_disparity")
+        checks.text(self.align_to, "align_to", SOCKETS)
+
+
+PRESETS = (
+    "ACCURACY",
+    "DEFAULT",
+    "DENSITY",
+    "FACE",
+    "FAST_ACCURACY",
+    "FAST_DENSITY",
+    "HIGH_DETAIL",
+    "ROBOTICS",
+)
+"""DepthAI's stereo presets (``dai.node.StereoDepth.PresetMode``)."""
+MEDIANS = ("MEDIAN_OFF", "KERNEL_3x3", "KERNEL_5x5", "KERNEL_7x7")
+"""DepthAI's median filters."""
+SOCKETS = ("CAM_A", "CAM_B", "CAM_C", "CAM_D")
+"""Camera sockets of an OAK board."""
 
 
 def _dai() -> Any:

@@ -45,6 +45,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Protocol
 
+from adaproj_edge import checks
 from adaproj_edge.errors import DeviceError, DeviceNotFoundError, InputError
 from adaproj_edge.hal.clock import Clock
 from adaproj_edge.hal.imu import ImuSample
@@ -160,6 +161,7 @@ class Lsm6dsoxConfig:
     fifo: bool = True
 
     def __post_init__(self) -> None:
+        checks.flag(self.fifo, "fifo")
         if self.rate_hz not in ODR_CODES:
             raise InputError(f"LSM6DSOX rate {self.rate_hz} Hz not in {sorted(ODR_CODES)}")
         if self.accel_range_g not in ACCEL_RANGES:

@@ -28,6 +28,7 @@ import errno
 import hashlib
 import logging
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -38,6 +39,7 @@ from smp.header import CommandId, GroupId
 from adaproj_edge.errors import (
     AdaprojError,
     ContentNotFoundError,
+    DeviceError,
     InputError,
     QuotaError,
     UploadOffsetError,
@@ -397,6 +399,9 @@ def serve(
 ) -> None:
     """Answer requests on ``port`` until ``stop`` is set (or forever).
 
+    Nothing the host does ends the loop: a reply the host does not take (it hung up,
+    or stopped reading) is dropped with a log line, and the next request is served.
+
     Parameters
     ----------
     port : SerialPort
@@ -409,11 +414,23 @@ def serve(
         Longest wait for input before checking ``stop``.
     """
     log.info("SMP server up (buffer %d bytes)", server.buf_size)
+    lost = BurstLog(log, "replies the host did not take", first=1)
+    failed = BurstLog(log, "reads of the serial port failed", first=1)
     while stop is None or not stop.is_set():
-        data = port.read(65536, poll)
+        try:
+            data = port.read(65536, poll)
+            failed.ok()
+        except DeviceError as e:  # the port's own trouble: wait, then try again
+            failed.bad("read failed", "reading the serial port failed: %s", e)
+            time.sleep(poll)
+            continue
         for message in server.decoder.feed(data):
             reply = server.handle(message)
             if reply is not None:
-                port.write(encode_frame(reply))
+                try:
+                    port.write(encode_frame(reply))
+                    lost.ok()
+                except DeviceError as e:  # a host that hung up or stopped reading
+                    lost.bad("not taken", "reply dropped: %s", e)
             if server.after_reply is not None:
                 server.after_reply()

@@ -24,6 +24,7 @@ import json
 import logging
 import os
 import re
+import shutil
 import stat
 import zlib
 from collections.abc import Callable
@@ -31,8 +32,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from adaproj_edge.content.intake import read_content
 from adaproj_edge.content.video import VIDEO_EXTENSIONS, is_video_name, probe
 from adaproj_edge.errors import (
+    AdaprojError,
     ContentError,
     ContentNotFoundError,
     ImageError,
@@ -98,6 +101,37 @@ class ActiveRecord:
         """The store items it uses."""
         return (self.image,) if self.mask is None else (self.image, self.mask)
 
+    @classmethod
+    def from_json(cls, raw: Any) -> ActiveRecord:
+        """The record in a JSON value read back from storage, checked as strictly as a
+        host's request: :class:`ContentError` says what is wrong."""
+        if not isinstance(raw, dict):
+            raise ContentError(f"the record must be a JSON object, not {type(raw).__name__}")
+        unknown = set(raw) - {"image", "mask", "settings"}
+        if unknown:
+            raise ContentError(f"unknown keys {sorted(map(str, unknown))}")
+        image, mask, settings = raw.get("image"), raw.get("mask"), raw.get("settings")
+        if not isinstance(image, str):
+            raise ContentError(f"image must be an item's name, not {image!r:.40}")
+        if mask is not None and not isinstance(mask, str):
+            raise ContentError(f"mask must be an item's name or null, not {mask!r:.40}")
+        if settings is None:
+            settings = {}
+        if not isinstance(settings, dict) or not all(isinstance(k, str) for k in settings):
+            raise ContentError(f"settings must be a JSON object, not {settings!r:.40}")
+        return cls(check_name(image), None if mask is None else check_name(mask), settings)
+
+
+def _parse_partial(file_name: str) -> tuple[int, str] | None:
+    """(declared size, item name) of an upload's file in ``.incoming``, or None."""
+    total, _, name = file_name.partition(".")
+    if not (total.isdigit() and total.isascii() and len(total) <= 20):
+        return None
+    try:
+        return int(total), check_name(name)
+    except ContentError:
+        return None
+
 
 def check_name(raw: str) -> str:
     """The store name for a client's ``raw`` name, or :class:`ContentError`.
@@ -134,13 +168,28 @@ class ContentStore:
         self.root = Path(root)
         self.limits = limits or Limits()
         self.incoming = self.root / ".incoming"
+        self._ignored_active: bytes | None = None
         self.incoming.mkdir(parents=True, exist_ok=True)
         for stale in self.root.glob(".*.tmp"):  # an atomic write cut short by a crash
             stale.unlink(missing_ok=True)
         self._recover()
 
     def _recover(self) -> None:
-        """Finish what a crash interrupted: commit whole uploads, drop impossible ones."""
+        """Finish what a crash interrupted: commit whole uploads, drop impossible ones
+        (and files in ``.incoming`` that are not an upload's)."""
+        for f in self._incoming_files():
+            parsed = _parse_partial(f.name)
+            if (
+                parsed is None
+                or f.is_symlink()
+                or not f.is_file()
+                or parsed[0] > self.limits.max_file
+            ):
+                log.warning("removing %s from the uploads in progress: not an upload", f.name)
+                if f.is_dir() and not f.is_symlink():
+                    shutil.rmtree(f, ignore_errors=True)
+                else:
+                    f.unlink(missing_ok=True)
         for p in self.pending():
             if p.received > p.total:
                 self._partial(p).unlink(missing_ok=True)
@@ -242,14 +291,23 @@ class ContentStore:
     # ---- uploads --------------------------------------------------------------
 
     def pending(self) -> list[Pending]:
-        """Uploads in progress, oldest first."""
+        """Uploads in progress, oldest first (files in ``.incoming`` that are not an
+        upload's, by their name, are left out)."""
         out = []
-        paths = sorted(self.incoming.iterdir(), key=lambda q: q.stat().st_mtime_ns)
-        for p in paths:
-            total, _, name = p.name.partition(".")
-            if total.isdigit() and NAME_RE.fullmatch(name):
-                out.append(Pending(name, p.stat().st_size, int(total)))
+        for p in self._incoming_files():
+            parsed = _parse_partial(p.name)
+            if parsed is not None:
+                out.append(Pending(parsed[1], p.stat().st_size, parsed[0]))
         return out
+
+    def _incoming_files(self) -> list[Path]:
+        files = []
+        for p in self.incoming.iterdir():
+            try:
+                files.append((p.stat().st_mtime_ns, p))
+            except OSError:
+                continue
+        return [p for _, p in sorted(files)]
 
     def pending_for(self, raw: str) -> Pending | None:
         """The upload in progress for ``raw``, if there is one."""
@@ -264,7 +322,10 @@ class ContentStore:
 
         Everything that can be refused up front is refused before a byte is written:
         the name, the size, the quota, and the start of the data (PNG/JPEG magic, and
-        for a PNG the pixel count in its header; a clip's container).
+        for a PNG the pixel count in its header; a clip's container). Pending uploads
+        never keep a new one out: the oldest are dropped until it fits beside the
+        committed items and at most :data:`MAX_PENDING` uploads are kept. A first chunk
+        that is refused leaves nothing behind.
         """
         name = check_name(raw)
         lim = self.limits
@@ -273,27 +334,40 @@ class ContentStore:
             raise ImageError(f"{name}: an empty file is not {kind}")
         if total > lim.max_file:
             raise QuotaError(f"{name} is {total} bytes; one item may be at most {lim.max_file}")
+        if len(data) > total:
+            raise ContentError(f"{name}: {len(data)} bytes is more than the {total} declared")
         if len(data) >= min(HEAD, total):
             check_content_head(data[:HEAD], name, lim)
-        old = self.pending_for(name)
-        if old is not None:
-            self._partial(old).unlink(missing_ok=True)
         items = self.sizes()
         if name not in items and len(items) >= lim.max_items:
             raise QuotaError(f"the device holds {len(items)} items, the most it keeps")
-        used = sum(items.values()) - items.get(name, 0) + sum(p.total for p in self.pending())
-        if used + total > lim.quota:
+        committed = sum(items.values()) - items.get(name, 0)
+        if committed + total > lim.quota:
             raise QuotaError(
-                f"{name} ({total} bytes) does not fit: {used} of {lim.quota} bytes are in use"
+                f"{name} ({total} bytes) does not fit: {committed} of {lim.quota} bytes are "
+                "in use by items"
             )
-        for stale in self.pending()[: max(0, len(self.pending()) - MAX_PENDING + 1)]:
-            log.info("dropping the oldest pending upload %s", stale.name)
+        others = [p for p in self.pending() if p.name != name]
+        old = self.pending_for(name)
+        if old is not None:
+            self._partial(old).unlink(missing_ok=True)
+        while others and (
+            len(others) >= MAX_PENDING
+            or committed + sum(p.total for p in others) + total > lim.quota
+        ):
+            stale = others.pop(0)
+            log.info("dropping the oldest pending upload %s to make room", stale.name)
             self._partial(stale).unlink(missing_ok=True)
-        part = Pending(name, 0, total)
-        with self._partial(part).open("wb") as f:
+        part = self._partial(Pending(name, 0, total))
+        with part.open("wb") as f:
             os.fsync(f.fileno())
         fsync_dir(self.incoming)
-        return self.append(name, 0, data)
+        try:
+            return self.append(name, 0, data)
+        except BaseException:
+            part.unlink(missing_ok=True)  # not acknowledged: no trace of it
+            fsync_dir(self.incoming)
+            raise
 
     def append(self, raw: str, off: int, data: bytes) -> int:
         """Add a chunk at ``off``; returns the bytes received. Commits at the end.
@@ -337,21 +411,66 @@ class ContentStore:
 
     def _commit(self, name: str, part: Path) -> None:
         self._refuse_on(lambda: check_content(part, name, self.limits), part)
+        self._refuse_on(lambda: self._check_shown(name, part), part)
         size = part.stat().st_size
         os.replace(part, self.root / name)
         fsync_dir(self.root)
         fsync_dir(self.incoming)
         log.info("committed %s (%d bytes)", name, size)
 
+    def _check_shown(self, name: str, part: Path) -> None:
+        """Refuse a new version of a shown item that could not be shown in its place:
+        the pair (image or clip, mask) is read as the device reads it, with ``part``
+        standing for ``name``, so what is shown is never replaced by something that
+        is not. A pair whose other item is missing is not checked (nothing to keep)."""
+        active = self.active()
+        if active is None or name not in active.items():
+            return
+        image, mask = (
+            None if n is None else part if n == name else self.root / n
+            for n in (active.image, active.mask)
+        )
+        assert image is not None
+        if not all(p.is_file() for p in (image, mask) if p is not None):
+            return
+        try:
+            read_content(image, mask)
+        except AdaprojError as e:
+            pair = (
+                f"with the mask {active.mask}"
+                if name == active.image
+                else (f"as the mask of {active.image}")
+            )
+            raise ContentError(
+                f"{name} is being shown {pair}, and this version cannot be ({e}); the "
+                "shown one is kept: activate something else first"
+            ) from None
+
     # ---- what is shown ----------------------------------------------------------
 
     def active(self) -> ActiveRecord | None:
-        """The active record, or ``None`` if nothing was ever activated."""
+        """The active record, or ``None`` if nothing was ever activated or the record
+        cannot be used (unreadable, or not a record: logged once, ignored)."""
+        path = self.root / ".active.json"
         try:
-            raw = json.loads((self.root / ".active.json").read_text())
-            return ActiveRecord(raw["image"], raw.get("mask"), dict(raw.get("settings") or {}))
-        except (OSError, ValueError, KeyError, TypeError):
+            text = path.read_bytes()
+        except FileNotFoundError:
             return None
+        except OSError as e:
+            self._ignore_active(b"", f"cannot read it: {e.strerror or e}")
+            return None
+        try:
+            return ActiveRecord.from_json(json.loads(text))
+        except (ValueError, RecursionError) as e:  # not JSON (UnicodeDecodeError too)
+            self._ignore_active(text, f"not JSON ({type(e).__name__})")
+        except ContentError as e:
+            self._ignore_active(text, str(e))
+        return None
+
+    def _ignore_active(self, text: bytes, reason: str) -> None:
+        if text != self._ignored_active:
+            self._ignored_active = text
+            log.warning("ignoring %s: %s", self.root / ".active.json", reason)
 
     def set_active(self, record: ActiveRecord) -> None:
         """Record what is shown (atomically; the items must exist)."""

@@ -12,9 +12,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from adaproj_edge import checks
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.fileio import atomic_savez, load_npz
+from adaproj_edge.geometry.calibration import field_errors
 from adaproj_edge.geometry.projector import Projector
 
 MAX_GRID = 400
@@ -95,24 +97,83 @@ class Warp:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Warp:
-        """Read a warp file written by :meth:`save`."""
+        """Read a warp file written by :meth:`save`.
+
+        Every array and field is checked (shapes, finiteness, the grid a rising tensor
+        grid over the frame, sizes in range), so a damaged or foreign file is an
+        :class:`InputError` here, never a failure later in the renderer.
+        """
         arrays = load_npz(path, "warp file", ("grid_uv", "image_xy", "K", "meta"))
-        try:
+        with field_errors(f"warp file {path}"):
             meta = json.loads(str(arrays["meta"]))
-            grid_uv = arrays["grid_uv"].astype(np.float64)
-            image_xy = arrays["image_xy"].astype(np.float64)
-            K = arrays["K"].astype(np.float64)
-            depth = arrays["depth"].astype(np.float64) if "depth" in arrays else None
-            map_xy = arrays["map_xy"].astype(np.float32) if "map_xy" in arrays else None
-        except (ValueError, TypeError) as e:
-            raise InputError(f"cannot read warp file {path}: {e}") from None
-        if not isinstance(meta, dict):
-            raise InputError(f"warp file {path}: meta must be a JSON object")
-        if grid_uv.shape != image_xy.shape or grid_uv.ndim != 3 or grid_uv.shape[2] != 2:
-            raise InputError(f"warp file {path}: grid_uv and image_xy must both be (R, C, 2)")
-        try:
-            projector = Projector(K, int(meta["width"]), int(meta["height"]))
-            size = (int(meta["content_width"]), int(meta["content_height"]))
-        except (KeyError, TypeError, ValueError):
-            raise InputError(f"warp file {path}: meta lacks the frame or content size") from None
+            if not isinstance(meta, dict):
+                raise InputError("meta must be a JSON object")
+            projector = Projector(
+                _array(arrays, "K", np.float64),
+                checks.integer(meta.get("width"), "meta width", 2, MAX_FRAME),
+                checks.integer(meta.get("height"), "meta height", 2, MAX_FRAME),
+            )
+            size = (
+                checks.integer(meta.get("content_width"), "meta content_width", 1, MAX_FRAME),
+                checks.integer(meta.get("content_height"), "meta content_height", 1, MAX_FRAME),
+            )
+            grid_uv = _array(arrays, "grid_uv", np.float64)
+            _check_grid(grid_uv, projector)
+            rows, cols = grid_uv.shape[:2]
+            image_xy = _array(arrays, "image_xy", np.float64, (rows, cols, 2), nan=True)
+            depth = None
+            if "depth" in arrays:
+                depth = _array(arrays, "depth", np.float64, (rows, cols), nan=True)
+            map_xy = None
+            if "map_xy" in arrays:
+                frame = (projector.height, projector.width, 2)
+                map_xy = _array(arrays, "map_xy", np.float32, frame, nan=True)
         return cls(grid_uv, image_xy, size, projector, meta, map_xy, depth)
+
+
+MAX_FRAME = 16384
+"""Pixels a side of a projector frame or a content item, at most, in a warp file."""
+
+
+def _array(
+    arrays: dict[str, NDArray[Any]],
+    key: str,
+    dtype: type[np.floating[Any]],
+    shape: tuple[int, ...] | None = None,
+    *,
+    nan: bool = False,
+) -> NDArray[Any]:
+    """``arrays[key]`` as ``dtype``, of ``shape`` when given, finite (or NaN with ``nan``)."""
+    a = arrays[key]
+    if a.dtype.kind not in "fiu":
+        raise InputError(f"{key} must hold numbers, not {a.dtype}")
+    a = a.astype(dtype)
+    if shape is not None and a.shape != shape:
+        raise InputError(f"{key} must be {shape}, not {a.shape}")
+    bad = np.isinf(a) if nan else ~np.isfinite(a)
+    if bad.any() or (nan and np.nanmax(np.abs(a), initial=0.0) > 1e9):
+        raise InputError(f"{key} holds values that are not finite numbers")
+    return a
+
+
+def _check_grid(grid_uv: FloatArray, projector: Projector) -> None:
+    """Refuse a ``grid_uv`` that is not a rising tensor grid of at least 2x2 vertices
+    from the frame's first pixel to its last."""
+    if grid_uv.ndim != 3 or grid_uv.shape[2] != 2:
+        raise InputError(f"grid_uv must be (R, C, 2), not {grid_uv.shape}")
+    rows, cols = grid_uv.shape[:2]
+    if not (2 <= rows <= MAX_GRID + 1 and 2 <= cols <= MAX_GRID + 1):
+        raise InputError(
+            f"grid_uv has {rows}x{cols} vertices; 2x2 .. {MAX_GRID + 1}x{MAX_GRID + 1} expected"
+        )
+    xs, ys = grid_uv[0, :, 0], grid_uv[:, 0, 1]
+    tensor = np.array_equal(grid_uv[..., 0], np.broadcast_to(xs, (rows, cols))) and (
+        np.array_equal(grid_uv[..., 1], np.broadcast_to(ys[:, None], (rows, cols)))
+    )
+    rising = bool(np.all(np.diff(xs) > 0) and np.all(np.diff(ys) > 0))
+    spans = (xs[0], xs[-1], ys[0], ys[-1]) == (0, projector.width - 1, 0, projector.height - 1)
+    if not (tensor and rising and spans):
+        raise InputError(
+            "grid_uv must be a rising grid of vertices from the frame's first pixel to "
+            f"its last ({projector.width}x{projector.height})"
+        )

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -267,3 +269,55 @@ def test_boot_shows_the_last_good_warp(still_records: list[object], tmp_path: Pa
     other = Runtime(CAL, MemoryDisplay(), VirtualClock(), [_second_item()], state_dir=tmp_path)
     other.boot()  # another content size: plainly
     assert other.shown_warp is not None and other.shown_warp.meta["mode"] == "standard"
+
+
+def _last_warp_variants() -> tuple[dict[str, dict[str, Any]], dict[str, Any]]:
+    """Well-formed warp files (right keys and dtypes) with shapes that do not fit."""
+    item = builtin_item()
+    rt = Runtime(
+        CAL, MemoryDisplay(CAL.projector.width, CAL.projector.height), VirtualClock(), [item]
+    )
+    warp, _ = rt.warps.plain(item.size)
+    meta = {
+        "mode": "standard",
+        "content_width": item.size[0],
+        "content_height": item.size[1],
+        "width": CAL.projector.width,
+        "height": CAL.projector.height,
+    }
+    base = {"grid_uv": warp.grid_uv, "image_xy": warp.image_xy, "K": CAL.projector.K}
+    r, c = warp.grid_uv.shape[:2]
+    return {
+        "grid 1x1": {**base, "grid_uv": warp.grid_uv[:1, :1], "image_xy": warp.image_xy[:1, :1]},
+        "grid 0x0": {**base, "grid_uv": np.zeros((0, 0, 2)), "image_xy": np.zeros((0, 0, 2))},
+        "depth of another grid": {**base, "depth": np.ones((r + 1, c))},
+        "map of another frame": {**base, "map_xy": np.zeros((10, 10, 2), np.float32)},
+        "grid not over the frame": {**base, "grid_uv": warp.grid_uv * 0.5},
+        "infinite content": {**base, "image_xy": np.full_like(warp.image_xy, np.inf)},
+        "frame of 1e9 pixels": {**base, "meta": {**meta, "width": 1e9}},
+        "content width -3": {**base, "meta": {**meta, "content_width": -3}},
+    }, meta
+
+
+LAST_WARPS, LAST_META = _last_warp_variants()
+
+
+@pytest.mark.parametrize("case", list(LAST_WARPS))
+def test_a_last_warp_that_does_not_fit_is_ignored_at_boot(
+    case: str, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    arrays = dict(LAST_WARPS[case])
+    meta = arrays.pop("meta", LAST_META)
+    np.savez(tmp_path / "last-warp.npz", meta=np.array(json.dumps(meta)), **arrays)
+    kinds: list[str] = []
+    rt = Runtime(
+        CAL,
+        MemoryDisplay(CAL.projector.width, CAL.projector.height),
+        VirtualClock(),
+        [builtin_item()],
+        on_frame=lambda t, f, info: kinds.append(info["kind"]),
+        state_dir=tmp_path,
+    )
+    rt.boot()
+    assert rt.state == State.IDLE and "last-warp" not in kinds
+    assert any("ignoring the last warp" in r.getMessage() for r in caplog.records)

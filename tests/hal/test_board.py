@@ -86,3 +86,91 @@ def test_clocks() -> None:
     t = m.now_ns()
     m.sleep_until(t)
     assert m.now_ns() >= t
+
+
+@pytest.mark.parametrize(
+    ("extra", "key", "allowed"),
+    [
+        ("[depth]\nfps = nan\n", "[depth] fps", "(0, 120]"),
+        ("[depth]\nwidth = -640\n", "[depth] width", "[16, 4096]"),
+        ("[depth]\nwidth = 640.5\n", "[depth] width", "[16, 4096]"),
+        ("[depth]\nsubpixel = 1\n", "[depth] subpixel", "true or false"),
+        ("[depth]\npreset = 'FAST'\n", "[depth] preset", "DEFAULT"),
+        ("[depth]\nleft_right_threshold = 1000\n", "[depth] left_right_threshold", "[0, 128]"),
+        ("[display]\nrefresh_hz = nan\n", "[display] refresh_hz", "[1, 1000]"),
+        ("[display]\nrefresh_hz = '60'\n", "[display] refresh_hz", "[1, 1000]"),
+        ("[calibrate]\nfps = inf\n", "[calibrate] fps", "(0, 240]"),
+        (
+            "[calibrate]\ndisplay_latency_ms = -1.0\n",
+            "[calibrate] display_latency_ms",
+            "[0, 10000]",
+        ),
+        ("[calibrate]\niso = 400.5\n", "[calibrate] iso", "[100, 1600]"),
+        ("[serial]\ndevice = 5\n", "[serial] device", "a string"),
+        ("[serial]\nbaud = 5\n", "[serial] unknown keys", "device"),
+        ("[depth]\nwidth = " + "[" * 3000 + "]" * 3000 + "\n", "nested too deeply", ""),
+    ],
+)
+def test_every_board_field_is_checked(tmp_path: Path, extra: str, key: str, allowed: str) -> None:
+    p = write_board(tmp_path, extra)
+    with pytest.raises(InputError) as e:
+        Board.load(p)
+    message = str(e.value)
+    assert str(p) in message and key in message and allowed in message, message
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key", "allowed"),
+    [
+        ("bus = 1", "bus = 99999999999999999", "[imu] bus", "[0, 1023]"),
+        ("bus = 1", "bus = -1", "[imu] bus", "[0, 1023]"),
+        ("bus = 1", "bus = true", "[imu] bus", "[0, 1023]"),
+        ("key_code = 28", "key_code = 28.5", "[button] key_code", "[1, 767]"),
+        ('name = "x"', "name = 5", "name", "a string"),
+        ('name = "x"', 'name = "x"\ndepth = 5', "[depth] must be a table", ""),
+        ('name = "x"', 'name = "x"\nextra = 5', "unknown keys ['extra']", ""),
+    ],
+)
+def test_board_imu_and_button_fields_are_checked(
+    tmp_path: Path, old: str, new: str, key: str, allowed: str
+) -> None:
+    p = write_board(tmp_path, "")
+    p.write_text(p.read_text().replace(old, new))
+    with pytest.raises(InputError) as e:
+        Board.load(p)
+    message = str(e.value)
+    assert str(p) in message and key in message and allowed in message, message
+
+
+@pytest.mark.parametrize(
+    ("table", "field", "value", "key", "allowed"),
+    [
+        ("projector", "width", "1e9", "[projector] width", "[2, 16384]"),
+        ("projector", "height", "0", "[projector] height", "[2, 16384]"),
+        ("depth", "width", "-640", "[depth] width", "[2, 16384]"),
+        ("depth", "baseline_m", "nan", "[depth] baseline_m", "(0, 1]"),
+        ("depth", "baseline_m", "-0.075", "[depth] baseline_m", "(0, 1]"),
+        ("depth", "baseline_m", "'wide'", "[depth] baseline_m", "(0, 1]"),
+    ],
+)
+def test_every_calibration_field_is_checked(
+    tmp_path: Path, table: str, field: str, value: str, key: str, allowed: str
+) -> None:
+    text = Calibration.default().to_toml()
+    head, _, rest = text.partition(f"[{table}]\n")
+    lines = [f"{field} = {value}" if ln.startswith(f"{field} =") else ln for ln in rest.split("\n")]
+    p = tmp_path / "cal.toml"
+    p.write_text(head + f"[{table}]\n" + "\n".join(lines))
+    with pytest.raises(InputError) as e:
+        Calibration.load(p)
+    message = str(e.value)
+    assert str(p) in message and key in message and allowed in message, message
+
+
+@pytest.mark.parametrize("suffix", [".toml", ".json"])
+def test_a_deeply_nested_calibration_is_an_input_error(tmp_path: Path, suffix: str) -> None:
+    p = tmp_path / f"cal{suffix}"
+    nested = "[" * 100_000 + "]" * 100_000
+    p.write_text(f"x = {nested}\n" if suffix == ".toml" else f'{{"x": {nested}}}')
+    with pytest.raises(InputError, match="nested too deeply"):
+        Calibration.load(p)

@@ -1,6 +1,7 @@
 """Malformed input for the link, shared by the test suite and ``tools/fuzz_link.py``.
 
-Three targets:
+Three targets for the wire and the dispatcher (five more, for what a hostile host and
+a damaged card found, are described further down):
 
 - :func:`wire_target`: a byte stream (valid frames of bad messages, mutated frames,
   noise) through the frame decoder and the dispatcher, replies encoded back.
@@ -17,17 +18,26 @@ is lost.
 from __future__ import annotations
 
 import base64
+import json
 import struct
+import threading
 from collections import Counter
+from pathlib import Path
 from typing import Any
 
 import cbor2
+import cv2
+import numpy as np
 from hypothesis import strategies as st
 
+from adaproj_edge.errors import DeviceError, ImageError
+from adaproj_edge.fileio import decode_image, image_size
+from adaproj_edge.link.device import StandaloneDevice
 from adaproj_edge.link.framing import CONTINUE, MAX_LINE, START, FrameDecoder, encode_frame
 from adaproj_edge.link.ids import ADAPROJ_GROUP
 from adaproj_edge.link.message import HEADER
-from adaproj_edge.link.server import Server
+from adaproj_edge.link.server import Server, serve
+from adaproj_edge.link.store import MAX_PENDING, ContentStore
 
 FIELDS = ["d", "name", "off", "data", "len", "type", "image", "mask", "settings", "force"]
 NAMES = [
@@ -236,3 +246,227 @@ def resync_target(
     assert last == good, "the intact frame after the junk was lost"
     seen["resynchronised"] += 1
     assert len(decoder._line) <= MAX_LINE
+
+
+# ---- the classes a hostile host and a damaged card found -----------------------------
+#
+# - jpeg_target: JPEGs with fill bytes, garbage between segments and fake frame
+#   headers in comments: the size read from the header is the size the decoder
+#   decodes, or the image is refused before decoding.
+# - refusals_target: bursts of requests refused for thousands of different reasons:
+#   the server's log state stays bounded.
+# - pending_target: uploads begun and abandoned, declaring what fills the quota: a new
+#   upload of another name still fits.
+# - state_target: any JSON as the saved active record: the server starts and answers.
+# - hangup_target: a port whose host hangs up or stops reading at any point: the server
+#   goes on and answers the next good request.
+
+
+def _small_jpeg(w: int, h: int, color: bool, seed: int) -> bytes:
+    rng = np.random.default_rng(seed)
+    shape = (h, w, 3) if color else (h, w)
+    ok, enc = cv2.imencode(".jpg", rng.integers(0, 256, shape, dtype=np.uint8))
+    assert ok
+    return bytes(enc.tobytes())
+
+
+def _segments(jpeg: bytes) -> list[bytes]:
+    i, out = 2, []
+    while i < len(jpeg):
+        if jpeg[i + 1] == 0xDA:
+            out.append(jpeg[i:])
+            break
+        n = int.from_bytes(jpeg[i + 2 : i + 4], "big")
+        out.append(jpeg[i : i + 2 + n])
+        i += 2 + n
+    return out
+
+
+def _fake_sof(w: int, h: int) -> bytes:
+    return b"\xff\xc0\x00\x0b\x08" + struct.pack(">HH", h, w) + b"\x01\x01\x11\x00"
+
+
+@st.composite
+def jpegs(draw: st.DrawFn) -> bytes:
+    """A small real JPEG with fill bytes before markers, bytes between segments,
+    comments and APPn segments holding fake frame headers, and perhaps a frame header
+    that declares another size than its data."""
+    w, h = draw(st.integers(2, 40)), draw(st.integers(2, 40))
+    jpeg = _small_jpeg(w, h, draw(st.booleans()), draw(st.integers(0, 99)))
+    out = b"\xff\xd8"
+    for seg in _segments(jpeg)[1:]:
+        if draw(st.integers(0, 3)) == 0:
+            out += draw(st.binary(max_size=6))  # stray bytes (libjpeg skips them)
+        if draw(st.integers(0, 2)) == 0:
+            fake = _fake_sof(draw(st.integers(1, 64)), draw(st.integers(1, 64)))
+            body = draw(st.binary(max_size=8)) + fake + draw(st.binary(max_size=8))
+            marker = draw(st.sampled_from([0xFE, 0xE0, 0xE1, 0xEC]))
+            out += bytes([0xFF, marker]) + struct.pack(">H", len(body) + 2) + body
+        if seg[1] == 0xC0 and draw(st.integers(0, 3)) == 0:
+            seg = seg[:5] + struct.pack(">HH", draw(st.integers(0, 64)), draw(st.integers(0, 64)))
+            seg += _small_tail(jpeg, seg)
+        out += b"\xff" * draw(st.integers(0, 3)) + seg
+    return out
+
+
+def _small_tail(jpeg: bytes, seg: bytes) -> bytes:
+    """The rest of the original frame header after its size (components)."""
+    i = jpeg.index(b"\xff\xc0")
+    n = int.from_bytes(jpeg[i + 2 : i + 4], "big")
+    return jpeg[i + 9 : i + 2 + n]
+
+
+def jpeg_target(data: bytes, seen: Counter[str]) -> None:
+    """The header's size is the decoder's, or the bytes are refused without decoding."""
+    size = image_size(data)
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    if img is not None:
+        assert size == (img.shape[1], img.shape[0]), (size, img.shape)
+        seen["decoded"] += 1
+    if size is None:
+        try:
+            decode_image(data, "fuzz.jpg")
+        except ImageError:
+            seen["refused unread"] += 1
+        else:
+            raise AssertionError("an image whose size was not read was decoded")
+
+
+@st.composite
+def refusal_bursts(draw: st.DrawFn) -> list[tuple[int, int]]:
+    """(group, command) pairs of requests that are all refused, mostly distinct."""
+    n = draw(st.integers(1, 400))
+    start = draw(st.integers(100, 60_000))
+    return [((start + i // 256) % 0xFFFF, i % 256) for i in range(n)]
+
+
+def refusals_target(server: Server, burst: list[tuple[int, int]], seen: Counter[str]) -> None:
+    """Every request refused; the log's state bounded by its kinds, not the burst."""
+    for seq, (group, command) in enumerate(burst):
+        reply = server.handle(HEADER.pack(2, 0, 0, group, seq % 256, command))
+        assert reply is not None and b"rc" in reply
+    refusals = server._refusals
+    assert len(refusals.reasons) <= refusals.kinds + 1
+    seen["refused"] += len(burst)
+    if seen["refused"] % 5000 < len(burst):  # now and then a good request ends the burst
+        assert server.handle(HEADER.pack(2, 0, 4, 0, 0, 0) + b"\xa1ad`") is not None
+
+
+def _upload(name: str, off: int, data: bytes, total: int | None = None) -> bytes:
+    body = {"name": name, "off": off, "data": data} | ({} if total is None else {"len": total})
+    raw = cbor2.dumps(body)
+    return HEADER.pack(2, 0, len(raw), 8, 0, 0) + raw
+
+
+@st.composite
+def pending_floods(draw: st.DrawFn) -> list[tuple[str, int, int]]:
+    """Uploads begun and abandoned: (name, declared bytes, bytes sent)."""
+    n = draw(st.integers(1, 8))
+    return [
+        (f"p{draw(st.integers(0, 9))}.png", draw(st.integers(33, 2**19)), draw(st.integers(0, 32)))
+        for _ in range(n)
+    ]
+
+
+def pending_target(
+    server: Server, flood: list[tuple[str, int, int]], png: bytes, seen: Counter[str]
+) -> None:
+    """After any abandoned uploads, a whole new one (of another name) fits."""
+    store = server.store
+    for name in store.sizes():
+        store.path(name).unlink()  # each case starts from an empty store
+    head = png[:32]
+    for name, total, sent in flood:
+        server.handle(_upload(name, 0, head[:sent], total))
+    assert len(store.pending()) <= MAX_PENDING
+    assert store.used() <= store.limits.quota
+    reply = server.handle(_upload("new.png", 0, png, len(png)))
+    assert reply is not None and cbor2.loads(reply[8:]).get("off") == len(png), reply
+    seen["fitted"] += 1
+
+
+json_values = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=12),
+    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=8), inner),
+    max_leaves=10,
+)
+active_records = st.one_of(
+    json_values.map(lambda v: json.dumps(v).encode()),
+    st.fixed_dictionaries(
+        {},
+        optional={
+            "image": json_values | st.sampled_from(NAMES),
+            "mask": json_values | st.sampled_from(NAMES),
+            "settings": json_values,
+        },
+    ).map(lambda v: json.dumps(v).encode()),
+    st.binary(max_size=64),
+)
+
+
+def state_target(root: Path, record: bytes, seen: Counter[str]) -> None:
+    """Any bytes as the saved active record: the server starts and answers."""
+    (root / ".active.json").write_bytes(record)
+    server = Server(ContentStore(root), StandaloneDevice(64, 40), buf_size=2048)
+    body = cbor2.dumps({})
+    reply = server.handle(HEADER.pack(0, 0, len(body), ADAPROJ_GROUP, 0, 3) + body)  # status
+    assert reply is not None and b"device" in reply
+    seen["started"] += 1
+
+
+class HangingPort:
+    """A port whose host hangs up (reads fail) or stops reading (writes fail) as told."""
+
+    def __init__(self, chunks: list[bytes | None], writes_fail: list[bool], stop: Any) -> None:
+        self.chunks, self.writes_fail, self.stop = chunks, writes_fail, stop
+        self.written: list[bytes] = []
+
+    def read(self, size: int, timeout: float) -> bytes:
+        if not self.chunks:
+            self.stop.set()
+            return b""
+        chunk = self.chunks.pop(0)
+        if chunk is None:
+            raise DeviceError("the host hung up")
+        return chunk
+
+    def write(self, data: bytes) -> None:
+        if self.chunks and self.writes_fail and self.writes_fail.pop(0):  # never the last
+            raise DeviceError("the host does not read")
+        self.written.append(data)
+
+    def close(self) -> None:
+        pass
+
+
+@st.composite
+def hangups(draw: st.DrawFn) -> tuple[list[bytes | None], list[bool]]:
+    """(what the port reads: frames, junk or a hang-up, and whether each write fails,
+    but the last), the last read an intact echo of ``"last"``."""
+    chunks: list[bytes | None] = []
+    for _ in range(draw(st.integers(0, 6))):
+        kind = draw(st.integers(0, 2))
+        if kind == 0:
+            chunks.append(None)
+        elif kind == 1:
+            body = cbor2.dumps({"d": draw(st.text(max_size=8))})
+            chunks.append(encode_frame(HEADER.pack(2, 0, len(body), 0, 1, 0) + body))
+        else:
+            chunks.append(draw(st.binary(max_size=40)))
+    body = cbor2.dumps({"d": "last"})
+    chunks.append(START + b"\n" + encode_frame(HEADER.pack(2, 0, len(body), 0, 2, 0) + body))
+    return chunks, draw(st.lists(st.booleans(), max_size=8))
+
+
+def hangup_target(
+    server: Server, case: tuple[list[bytes | None], list[bool]], seen: Counter[str]
+) -> None:
+    """``serve`` never ends by the host's doing; the last request is answered."""
+    chunks, fails = case
+    stop = threading.Event()
+    port = HangingPort(list(chunks), list(fails), stop)
+    serve(port, server, stop, poll=0.0)
+    decoder = FrameDecoder(server.max_message + 4)
+    replies = [m for w in port.written for m in decoder.feed(w)]
+    assert any(cbor2.loads(r[8:]) == {"r": "last"} for r in replies)
+    seen["survived"] += 1

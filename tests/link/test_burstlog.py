@@ -45,3 +45,19 @@ def test_a_short_burst_needs_no_summary(caplog: pytest.LogCaptureFixture) -> Non
 def test_bad_settings_are_refused() -> None:
     with pytest.raises(ValueError):
         BurstLog(LOG, "x", first=0)
+
+
+def test_distinct_reasons_keep_memory_lines_and_time_bounded(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    burst = BurstLog(logging.getLogger("test.burst"), "requests refused")
+    with caplog.at_level(logging.WARNING, logger="test.burst"):
+        for i in range(30_000):
+            burst.bad(f"{i % 65536}/{i // 256} rc 8", "refused %s: %s", i, "x" * 5000)
+            assert len(burst.reasons) <= burst.kinds + 1
+        burst.ok()
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(lines) == 3 + 30 + 1  # the first three, one every 1000, the end
+    assert max(map(len, lines)) < 1000 and sum(map(len, lines)) < 30_000
+    assert lines[-1].startswith("30000 requests refused before this good one")
+    assert "other 29992" in lines[-1]  # the first 8 reasons one by one

@@ -14,79 +14,18 @@ from __future__ import annotations
 import asyncio
 import os
 import random
-import subprocess
-import sys
 import threading
 from collections import Counter
 from pathlib import Path
-from typing import IO
 
 from adaproj_edge.errors import LinkError
 from adaproj_edge.hal.serial import PtyPair
 from adaproj_edge.link import client
 from adaproj_edge.link.host_requests import ActivateWrite, StatusRead
 from tests.link.media import png_bytes
+from tests.link.process import LinkProcess
 
-LINK_COMMAND = (sys.executable, "-m", "adaproj_edge.cli", "link")
 UPLOADS = int(os.environ.get("ADAPROJ_LINK_CRASH_UPLOADS", "5"))
-
-
-class LinkProcess:
-    """``adaproj link`` serving the master side of ``pty`` from another process."""
-
-    def __init__(self, pty: PtyPair, store: Path, log: IO[str]) -> None:
-        self.pty, self.store, self.log = pty, store, log
-        self.proc: subprocess.Popen[str] | None = None
-        self.copier: threading.Thread | None = None
-
-    def start(self) -> None:
-        _drain(self.pty.master)  # what the host sent to the dead server is gone (USB re-plug)
-        self.proc = subprocess.Popen(
-            [
-                *LINK_COMMAND,
-                *("--fd", str(self.pty.master), "--store", str(self.store)),
-                *("--buf-size", "4096"),
-            ],
-            pass_fds=(self.pty.master,),
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        assert self.proc.stderr is not None
-        for line in self.proc.stderr:  # wait for "SMP server up"
-            self.log.write(line)
-            if "SMP server up" in line:
-                break
-        self.copier = threading.Thread(target=self._copy_log, args=(self.proc.stderr,))
-        self.copier.start()
-
-    def _copy_log(self, stream: IO[str]) -> None:
-        for line in stream:
-            self.log.write(line)
-
-    def kill(self) -> None:
-        if self.proc is not None and self.proc.poll() is None:
-            self.proc.kill()
-
-    def wait_dead(self) -> None:
-        if self.proc is not None:
-            self.proc.kill()
-            self.proc.wait(10)
-            if self.copier is not None:
-                self.copier.join(10)
-            assert self.proc.stderr is not None
-            self.proc.stderr.close()
-            self.proc = None
-
-
-def _drain(fd: int) -> None:
-    import select
-
-    while select.select([fd], [], [], 0)[0]:
-        try:
-            if not os.read(fd, 65536):
-                return
-        except OSError:
-            return
 
 
 def _killer(
@@ -126,7 +65,7 @@ def run_campaign(uploads: int, root: Path, seed: int = 1) -> Counter[str]:
     shown = png_bytes(96, 64, seed=1000)
     expected = {"shown.png": shown}
     with PtyPair.open() as pty, open(root / "link.log", "w") as log:
-        link = LinkProcess(pty, store, log)
+        link = LinkProcess(pty, store, log, "--buf-size", "4096")
         link.start()
         try:
             asyncio.run(_resume_and_check(pty.path, shown, "shown.png"))

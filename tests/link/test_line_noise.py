@@ -28,7 +28,7 @@ from adaproj_edge.link.framing import CONTINUE, START, encode_frame
 from tests.link.conftest import NoisyLine
 from tests.link.media import png_bytes
 from tests.link.noise import Damage
-from tests.link.test_crash_resume import LinkProcess
+from tests.link.process import LinkProcess
 from tests.link.test_pty_clients import smpmgr
 
 BUF = 4096  # the fixture server's buffer
@@ -201,7 +201,7 @@ def test_adaproj_link_process_resynchronises(tmp_path: Path) -> None:
     data = png_bytes(100, 80, seed=7)
     log = io.StringIO()
     with PtyPair.open() as pty:
-        link = LinkProcess(pty, tmp_path / "store", log)
+        link = LinkProcess(pty, tmp_path / "store", log, "--buf-size", "4096")
         link.start()
         try:
             os.write(pty.slave, STRAYS["garbage then a partial line"])
