@@ -53,7 +53,10 @@ def compare_json(a: Any, b: Any, path: str, rel: float, out: list[str]) -> int:
         if len(a) != len(b):
             out.append(f"{path}: {len(a)} items against {len(b)}")
             return 1
-        return sum(compare_json(x, y, f"{path}[{i}]", rel, out) for i, (x, y) in enumerate(zip(a, b)))
+        return sum(
+            compare_json(x, y, f"{path}[{i}]", rel, out)
+            for i, (x, y) in enumerate(zip(a, b, strict=True))
+        )
     if isinstance(a, float) or isinstance(b, float):
         if not (isinstance(a, (int, float)) and isinstance(b, (int, float))):
             out.append(f"{path}: {a!r} against {b!r}")
