@@ -370,7 +370,7 @@ class WarpPlanner:
         warp = self._refine(
             mesh, depth, graded, settings, start, on_step, frame_dt, surface=surface
         )
-        self.smoother.refined(warp, content_map)
+        self.smoother.refined(warp, content_map, start)
         return self.smoother.smooth(warp, start, frame_dt)
 
     def _refine(
