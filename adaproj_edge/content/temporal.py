@@ -147,7 +147,7 @@ class TemporalContentMap:
             raise ValueError(f"frame is {w}x{h}, the clip is {self.content_size}")
         every = self.settings.saliency_every
         salient = self._saliency is None or self.frames % every == 0
-        if salient:
+        if salient or self._saliency is None:
             self.saliency_runs += 1
             self._saliency = resize_map(self.model.predict(frame_bgr), self.size, area=False)
         boxes = NO_FACES.copy()
