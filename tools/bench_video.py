@@ -2,9 +2,13 @@
 """Content-aware video on one core: frames per second, stage times, late frames.
 
 Makes a 1280x720 clip with OpenCV's own writer (MPEG-4 Part 2, ``mp4v`` in .mp4: the
-OpenCV wheels decode H.264 but cannot encode it), a subject moving across a textured
-background (``tests/content/clips.py``), and plays it onto a surface (default: the
-concave sphere) at the device's grid, one thread, three ways, in the same run:
+OpenCV wheels decode H.264 but cannot encode it) from ``tests/content/clips.py``
+(``--clip``: ``face``, the default, a face still for a second on a brick texture, then
+moving right across 60 % of the width; ``subject``, an orange ellipse moving across
+blurred noise), and plays it onto a surface (default: the concave sphere) at the
+device's grid, one thread, with the device's content maps (saliency every 4th frame,
+faces detected every 6th and followed between, the two never on one frame after the
+first), three ways, in the same run:
 
 - **content-aware** (ours, as the device and ``adaproj video`` play it:
   :class:`~adaproj_edge.render.clipplayer.ClipPlayer`): decode, content map, warm
@@ -20,7 +24,8 @@ took longer than the clip's frame period). Ratios are against the content-free w
 measured in the same run; the load average is printed (the machine is shared).
 
     .venv/bin/python tools/bench_video.py [--frames 150] [--independent-frames 20]
-        [--surface sphere-concave] [--size 1280x720] [--fps 30] [--low-pass] [--line-fit]
+        [--surface sphere-concave] [--size 1280x720] [--fps 30] [--clip face|subject]
+        [--low-pass] [--line-fit]
 """
 
 from __future__ import annotations
@@ -43,6 +48,8 @@ import numpy as np  # noqa: E402
 
 from adaproj_edge.app.settings import AppSettings  # noqa: E402
 from adaproj_edge.content.clip import ClipFrames  # noqa: E402
+from adaproj_edge.content.faces import FaceDetector  # noqa: E402
+from adaproj_edge.content.facetrack import FaceTracker  # noqa: E402
 from adaproj_edge.content.model import SaliencyModel  # noqa: E402
 from adaproj_edge.content.temporal import TemporalContentMap  # noqa: E402
 from adaproj_edge.content.video import check_video  # noqa: E402
@@ -56,19 +63,25 @@ from adaproj_edge.warp.engine import WarpSettings  # noqa: E402
 from adaproj_edge.warp.mesh import WarpCache  # noqa: E402
 from adaproj_edge.warp.planner import PlanSettings, WarpPlanner, compute_warp  # noqa: E402
 from adaproj_edge.warp.temporal import LINE_FIT, LOW_PASS, TemporalWarpSettings  # noqa: E402
-from tests.content.clips import subject_frame  # noqa: E402
+from tests.content.clips import face_frame, subject_frame  # noqa: E402
 
 Times = dict[str, list[float]]
 
 
-def make_clip(path: Path, n: int, size: tuple[int, int], fps: float) -> Path:
-    """``n`` frames of the moving subject, mp4v, at ``size`` and ``fps``."""
+def make_clip(path: Path, n: int, size: tuple[int, int], fps: float, kind: str = "face") -> Path:
+    """``n`` frames of ``kind`` (``face``: still for a second, then moving; ``subject``:
+    moving from the start), mp4v, at ``size`` and ``fps``."""
     writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter.fourcc(*"mp4v"), fps, size)
     if not writer.isOpened():
         raise SystemExit("OpenCV cannot write mp4v here")
-    speed = 0.6 * size[0] / n  # across 60 % of the width over the clip
+    still = round(fps) if kind == "face" else 0
+    speed = 0.6 * size[0] / max(1, n - still)  # across 60 % of the width
     for i in range(n):
-        writer.write(subject_frame(i, size, speed, start=0.2)[0])
+        if kind == "face":
+            image = face_frame(i, size, still=still - 1, speed=speed)[0]
+        else:
+            image = subject_frame(i, size, speed, start=0.2)[0]
+        writer.write(image)
     writer.release()
     return path
 
@@ -104,7 +117,12 @@ class Rig:
         self.planner = WarpPlanner(surface.projector, s.grid, plan, WarpCache())
         p = surface.projector
         self.display = DisplayMapBuilder(p, s.grid.vertices(p), s.map_scale)
-        maps = TemporalContentMap(self.size, shared_model(), grid=(s.grid.rows, s.grid.cols))
+        maps = TemporalContentMap(
+            self.size,
+            shared_model(),
+            tracker=FaceTracker(FaceDetector()),
+            grid=(s.grid.rows, s.grid.cols),
+        )
         self.clip = ClipFrames(clip, maps, self.info)
         self.surface = surface
 
@@ -211,6 +229,7 @@ def main() -> None:
     ap.add_argument("--surface", default="sphere-concave")
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--fps", type=float, default=30.0)
+    ap.add_argument("--clip", choices=("face", "subject"), default="face")
     ap.add_argument(
         "--low-pass",
         action="store_true",
@@ -225,9 +244,10 @@ def main() -> None:
     w, h = (int(x) for x in args.size.split("x"))
     surface = simulate_surface(args.surface)
     with tempfile.TemporaryDirectory() as d:
-        clip = make_clip(Path(d) / "clip.mp4", args.frames, (w, h), args.fps)
+        clip = make_clip(Path(d) / "clip.mp4", args.frames, (w, h), args.fps, args.clip)
         print(
-            f"clip {w}x{h} mp4v (OpenCV's writer), {args.frames} frames at {args.fps:g} fps; "
+            f"clip {args.clip} {w}x{h} mp4v (OpenCV's writer), {args.frames} frames at "
+            f"{args.fps:g} fps; "
             f"surface {args.surface}, grid {AppSettings().grid}, one thread; "
             f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}"
         )
