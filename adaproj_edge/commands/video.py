@@ -69,6 +69,8 @@ def run(args: argparse.Namespace) -> int:
 
     from adaproj_edge.app.settings import AppSettings
     from adaproj_edge.content.clip import ClipFrames
+    from adaproj_edge.content.faces import FaceDetector
+    from adaproj_edge.content.facetrack import FaceTracker
     from adaproj_edge.content.mask import load_mask
     from adaproj_edge.content.model import SaliencyModel
     from adaproj_edge.content.temporal import TemporalContentMap
@@ -89,7 +91,13 @@ def run(args: argparse.Namespace) -> int:
     plan = PlanSettings(refine_factor=s.refine_factor, warm_start=True)
     planner = WarpPlanner(surface.projector, grid, plan, WarpCache())
     display = DisplayMapBuilder(surface.projector, grid.vertices(surface.projector), s.map_scale)
-    maps = TemporalContentMap(size, SaliencyModel(), mask=mask, grid=(grid.rows, grid.cols))
+    maps = TemporalContentMap(
+        size,
+        SaliencyModel(),
+        mask=mask,
+        tracker=FaceTracker(FaceDetector()),  # as the device: faces followed
+        grid=(grid.rows, grid.cols),
+    )
     clip = ClipFrames(args.clip, maps, info)
     try:
         player = ClipPlayer(clip, surface, planner, display, settings, time.perf_counter)

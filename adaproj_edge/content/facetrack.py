@@ -1,9 +1,11 @@
 """Faces followed across the frames of a clip: detect every N frames, track in between.
 
 A detection costs tens of milliseconds (``models/lbpcascade_frontalface.md``); a frame
-at 30 fps has 33. :class:`FaceTracker` runs the detector on every ``every``-th frame and
-in between follows each face by normalised cross-correlation of its last appearance
-(a template cut from the scanned image) within a window around its last position,
+at 30 fps has 33. :class:`FaceTracker` runs the detector on every ``every``-th frame (a
+caller may put a detection off by a frame: the content map does, so that no frame runs
+both the detector and the saliency model) and in between follows each face by
+normalised cross-correlation of its last appearance (a template cut from the scanned
+image) within a window around its last position,
 which costs well under a millisecond per face. A face the detector no longer finds is
 kept for ``keep`` more detections (a turned head, a blink of the detector), then
 dropped; a face that can no longer be followed is dropped at once.
@@ -74,20 +76,32 @@ class FaceTracker:
         self.search = search
         self.frames = 0
         self.detections = 0
+        self._since: int | None = None  # frames since the last detection (None: none yet)
         self._tracks: list[_Track] = []
 
     def reset(self) -> None:
         """Forget every face (a new clip, or a jump in the clip); next frame detects."""
         self.frames = 0
+        self._since = None
         self._tracks = []
 
-    def update(self, frame_bgr: Image) -> FloatArray:
+    @property
+    def due(self) -> bool:
+        """Whether the detector is due on the next frame: the first frame, or ``every``
+        frames or more since the last detection."""
+        return self._since is None or self._since >= self.every
+
+    def update(self, frame_bgr: Image, detect: bool | None = None) -> FloatArray:
         """The faces in the next frame of the clip.
 
         Parameters
         ----------
         frame_bgr : (h, w, 3) or (h, w) uint8
             The frame, in the clip's order.
+        detect : bool, optional
+            Run the detector on this frame (True) or follow the faces (False); None:
+            when :attr:`due` (frames 0, ``every``, 2 ``every``, ... unless a caller
+            put a detection off: the next one is then ``every`` frames after it).
 
         Returns
         -------
@@ -95,10 +109,13 @@ class FaceTracker:
             ``x, y, w, h`` of each face in frame pixels, largest first.
         """
         gray, scale = self.detector.scan_image(frame_bgr)
-        if self.frames % self.every == 0:
+        if self.due if detect is None else detect:
             self._detect(gray)
+            self._since = 0
         else:
             self._follow(gray)
+        if self._since is not None:
+            self._since += 1
         self.frames += 1
         if not self._tracks:
             return NO_FACES.copy()

@@ -7,7 +7,10 @@ jumps from frame to frame would make the content-aware warp flicker. The
 - runs the saliency model every ``saliency_every`` frames (the target in between is
   the last one computed),
 - follows the faces on every frame with a :class:`~adaproj_edge.content.facetrack.FaceTracker`
-  (detection every few frames, tracking in between),
+  (detection every few frames, tracking in between), the two detectors taking turns:
+  a face detection due on a frame the saliency model runs on is put off to the next
+  frame, so after the first frame no frame pays for both (saliency ~8 ms and a face
+  detection ~20 ms at 1280x720 on one core together made frames late),
 - smooths the saliency exponentially in time: each frame moves it a fraction
   ``alpha`` of the way to its target, so a subject that moves drags the map smoothly
   behind it and a still scene gives a map that does not change at all,
@@ -142,10 +145,19 @@ class TemporalContentMap:
         h, w = frame_bgr.shape[:2]
         if (w, h) != self.content_size:
             raise ValueError(f"frame is {w}x{h}, the clip is {self.content_size}")
-        if self._saliency is None or self.frames % self.settings.saliency_every == 0:
+        every = self.settings.saliency_every
+        salient = self._saliency is None or self.frames % every == 0
+        if salient or self._saliency is None:
             self.saliency_runs += 1
             self._saliency = resize_map(self.model.predict(frame_bgr), self.size, area=False)
-        boxes = NO_FACES.copy() if self.tracker is None else self.tracker.update(frame_bgr)
+        boxes = NO_FACES.copy()
+        if self.tracker is not None:
+            # the detectors take turns: a face detection due on a saliency frame runs on
+            # the next frame (the first frame, which needs both, and a model run on
+            # every frame excepted)
+            first = self._smooth is None
+            detect = self.tracker.due and (not salient or first or every == 1)
+            boxes = self.tracker.update(frame_bgr, detect)
         now = face_map(boxes, self.content_size, self.size)
         faces = np.zeros(self.size[::-1]) if now is None else now.astype(np.float64)
         sal = self._saliency.astype(np.float64)

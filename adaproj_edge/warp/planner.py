@@ -25,7 +25,8 @@ Video frames (``refine(..., frame_dt=dt)``)
     Refined on the full grid (``PlanSettings.temporal.full_grid``, the default; the
     refinement grid without it, as in ``temporal.LOW_PASS``), the saliency
     weights graded, a warm start takes at most
-    ``PlanSettings.temporal.steps`` steps (none while the content map stands still)
+    ``PlanSettings.temporal.steps`` steps (none while the content map stands still and
+    the last refinement has converged)
     and the result goes through the planner's
     :class:`~adaproj_edge.warp.temporal.WarpSmoother`, so the warp follows a moving
     subject smoothly and stands still on a still scene (:mod:`adaproj_edge.warp.temporal`).
@@ -431,7 +432,7 @@ class WarpPlanner:
         warp = self._refine(
             mesh, depth, graded, settings, start, on_step, frame_dt, surface=surface
         )
-        self.smoother.refined(warp, content_map)
+        self.smoother.refined(warp, content_map, start)
         return self.smoother.smooth(warp, start, frame_dt)
 
     def _refine(

@@ -19,12 +19,17 @@ every frame gets a content-aware refinement
   than the line: ``turn_ratio``) the line is fitted over the last ``turn_window_s``
   only. Or (``window_s`` 0) a critically damped second-order low-pass filter (two
   equal exponential stages);
-- **held while the content stands still**: when no value of the content map has moved
-  more than :attr:`TemporalWarpSettings.still_change` since the map the last
-  refinement ran on, the frame takes no step and the last refined warp is shown again
-  (through the filter). The alternation from a warm start does not stand still on an
-  unchanged map (measured: its vertices wander 1-13 content px per frame), so without
-  the hold a still scene would never give a still warp.
+- **held once converged while the content stands still**: a still content map (no
+  value moved more than :attr:`TemporalWarpSettings.still_change` since the map the
+  last refinement ran on) is refined on, warm-started, frame after frame, until a
+  frame's refinement moves no vertex more than :attr:`TemporalWarpSettings.settle_px`
+  (0.1 content px); from then on the frame takes no step and the last refined warp is
+  shown again (through the filter). A frame's bounded steps (the first frame's too:
+  the settings' ``max_iterations``) do not converge the alternation, so holding the
+  first warp of a still scene would show an unconverged picture for as long as the
+  scene stands (measured: a face still on the bowl, 1.47x the subject size
+  inconsistency of a full solve of the frame, against 0.94x once converged, 4 frames
+  later); and holding is what makes a still scene give a still warp.
 
 Why: the content-aware energy of a still weighs a vertex as salient or not
 (``C >= T``), so as a subject moves, vertices enter and leave the salient set one at a
@@ -91,7 +96,13 @@ class TemporalWarpSettings:
         low-pass filter instead.
     still_change : float
         A frame whose content map differs from the last refined one by at most this
-        much everywhere takes no step (the warp is held; 0: always refine).
+        much everywhere takes no step once the refinement has settled (the warp is
+        held; 0: always refine).
+    settle_px : float
+        The refinement has settled (a still content map's warp may be held) when its
+        last frame, on a content map within ``still_change`` of the one before, moved
+        no vertex by more than this (content pixels). Until then a still scene is
+        refined on, warm-started, frame after frame.
     full_grid : bool
         Refine a clip's frames on every vertex of the warp grid, whatever the
         planner's ``refine_factor`` (False: the stills' grid, coarse to fine).
@@ -115,6 +126,7 @@ class TemporalWarpSettings:
     time_constant_s: float = 0.05
     window_s: float = 0.4
     still_change: float = 0.01
+    settle_px: float = 0.1
     full_grid: bool = True
     turn_ratio: float = 4.0
     turn_window_s: float = 0.2
@@ -125,6 +137,8 @@ class TemporalWarpSettings:
             raise ValueError("need steps >= 1, 0 <= band < 0.5 and time_constant_s >= 0")
         if not self.window_s >= 0.0 or not self.still_change >= 0.0:
             raise ValueError("need window_s >= 0 and still_change >= 0")
+        if not self.settle_px > 0.0:
+            raise ValueError("need settle_px > 0")
         if not self.turn_ratio >= 0.0 or not self.turn_window_s > 0.0:
             raise ValueError("need turn_ratio >= 0 and turn_window_s > 0")
         if not 0.0 <= self.residual_gain <= 1.0:
@@ -217,6 +231,9 @@ class WarpSmoother:
         self._out: FloatArray | None = None  # and its second: what is shown
         self._refined: Warp | None = None  # the last refinement's warp
         self._refined_map: NDArray[np.float32] | None = None  # and the map it ran on
+        self._refined_source: object | None = None  # and the content-free warp
+        self.settled = False  # the last refinement moved no vertex more than settle_px
+        self.last_move = math.inf  # its largest vertex move on a still map (content px)
         self.resets = 0
         self.holds = 0
         self.turns = 0
@@ -228,28 +245,50 @@ class WarpSmoother:
         self._first = self._out = None
         self._refined = None
         self._refined_map = None
+        self._refined_source = None
+        self.settled = False
+        self.last_move = math.inf
 
     def held(self, content_map: ContentMap, source: object) -> Warp | None:
-        """The last refined warp, when ``content_map`` has not moved from the map it
-        was refined on by more than ``still_change`` anywhere and ``source`` (the
-        content-free warp) is the same; None when this frame needs a refinement.
+        """The last refined warp, when it has settled (:attr:`settled`), ``content_map``
+        has not moved from the map it was refined on by more than ``still_change``
+        anywhere and ``source`` (the content-free warp) is the same; None when this
+        frame needs a refinement (a still map whose warp has not settled yet is refined
+        on, warm-started).
 
         The returned warp's ``meta`` says ``iterations`` 0 and ``held`` True.
         """
-        last, values = self._refined, self._refined_map
-        limit = self.settings.still_change
-        if last is None or values is None or source is not self._source or limit <= 0.0:
-            return None
-        now = content_map.values
-        if now.shape != values.shape or float(np.max(np.abs(now - values))) > limit:
+        last = self._refined
+        if last is None or not self.settled or not self._still(content_map, source):
             return None
         self.holds += 1
         return replace(last, meta={**last.meta, "iterations": 0, "held": True})
 
-    def refined(self, warp: Warp, content_map: ContentMap) -> None:
-        """Keep ``warp``, this frame's refinement of ``content_map``, for :meth:`held`."""
+    def refined(self, warp: Warp, content_map: ContentMap, source: object) -> None:
+        """Keep ``warp``, this frame's refinement of ``content_map`` from ``source``, for
+        :meth:`held`; it has settled when the last refinement was of a map within
+        ``still_change`` of this one and no vertex moved more than ``settle_px``."""
+        last = self._refined
+        still = last is not None and self._still(content_map, source)
+        move = math.inf
+        if still and last is not None and last.image_xy.shape == warp.image_xy.shape:
+            d = np.linalg.norm(np.asarray(warp.image_xy) - np.asarray(last.image_xy), axis=-1)
+            same = np.array_equal(np.isnan(d), np.isnan(np.asarray(last.image_xy)[..., 0]))
+            move = float(np.nanmax(d)) if same and np.isfinite(d).any() else math.inf
+        self.last_move = move
+        self.settled = move <= self.settings.settle_px
         self._refined = warp
         self._refined_map = np.array(content_map.values, np.float32)
+        self._refined_source = source
+
+    def _still(self, content_map: ContentMap, source: object) -> bool:
+        """Whether ``content_map`` is within ``still_change`` of the map the last
+        refinement ran on, from the same ``source``."""
+        values, limit = self._refined_map, self.settings.still_change
+        if values is None or source is not self._refined_source or limit <= 0.0:
+            return False
+        now = content_map.values
+        return now.shape == values.shape and float(np.max(np.abs(now - values))) <= limit
 
     @property
     def active(self) -> bool:

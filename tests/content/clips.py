@@ -68,3 +68,40 @@ def write_clip(
         writer.write(frame(i, size, speed))
     writer.release()
     return path
+
+
+def face_frame(
+    i: int,
+    size: tuple[int, int] = (640, 360),
+    still: int = 30,
+    speed: float = 6.0,
+    face: int = 0,
+) -> tuple[NDArray[np.uint8], tuple[float, float, float, float]]:
+    """Frame ``i`` of a clip that starts still: a face at the left on a textured
+    background, where it is on frames 0 to ``still``, then moving right ``speed`` px a
+    frame (frame ``i`` > ``still``: ``speed * (i - still)`` px right of frame 0's); and
+    the face's box (x, y, w, h).
+
+    The background is scikit-image's brick texture; the face the ``face``-th of the
+    Labeled Faces in the Wild crops (``tests/content/facescenes.py``), enlarged to 0.3 of
+    the frame's height and blended in a skin tint with feathered edges.
+    """
+    from skimage import data
+
+    w, h = size
+    bg = cv2.cvtColor(data.brick(), cv2.COLOR_GRAY2BGR)
+    img = cv2.resize(bg[: bg.shape[1] * h // w], size, interpolation=cv2.INTER_AREA)
+    s = max(24, round(0.3 * h))
+    x = 0.12 * w + speed * max(0, i - still)
+    y = 0.5 * h - s / 2
+    crop = np.round(data.lfw_subset()[face] * 255.0).astype(np.uint8)
+    patch = cv2.resize(crop, (s, s), interpolation=cv2.INTER_CUBIC).astype(np.float64)
+    alpha = np.zeros((s, s), np.float64)
+    cv2.ellipse(alpha, (s // 2, s // 2), (int(s * 0.48), int(s * 0.5)), 0, 0, 360, 1.0, -1)
+    alpha = cv2.GaussianBlur(alpha, (0, 0), s / 20)[:, :, None]
+    skin = np.array([0.62, 0.75, 0.95])  # BGR
+    xi, yi = round(x), round(y)
+    region = img[yi : yi + s, xi : xi + s].astype(np.float64)
+    mixed = alpha * patch[:, :, None] * skin + (1 - alpha) * region
+    img[yi : yi + s, xi : xi + s] = np.clip(mixed, 0, 255).astype(np.uint8)
+    return np.asarray(img, np.uint8), (float(xi), float(yi), float(s), float(s))

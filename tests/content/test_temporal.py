@@ -123,6 +123,40 @@ def test_mask_applies_to_every_frame_and_faces_are_followed(model: SaliencyModel
     assert full[y + 30 : y + 60, x + 20 : x + 55].mean() > 0.8  # the face is salient
 
 
+class CountingModel:
+    """A saliency stand-in (the frame's brightness) that counts its runs."""
+
+    runs = 0
+
+    def predict(self, image_bgr: Image) -> np.ndarray:
+        self.runs += 1
+        return np.asarray(image_bgr[..., 1], np.float32) / 255.0
+
+
+@pytest.mark.parametrize(("saliency_every", "faces_every"), [(4, 6), (4, 4), (3, 5), (2, 2)])
+def test_saliency_and_face_detection_take_turns(saliency_every: int, faces_every: int) -> None:
+    # before, frames 0, 12, 24, ... (saliency every 4th, faces every 6th) paid for both
+    det, model = CountingDetector(long_side=320), CountingModel()
+    tracker = FaceTracker(det, every=faces_every)
+    settings = TemporalSettings(saliency_every=saliency_every)
+    tmap = TemporalContentMap(SIZE, model, tracker=tracker, settings=settings)
+    both, detected, runs = [], [], []
+    for f, (x, y) in face_clip(25):
+        model.runs, scans = 0, det.scans
+        cmap = tmap.update(f)
+        detected.append(det.scans - scans)
+        runs.append(model.runs)
+        both.append(detected[-1] and runs[-1])
+        assert len(cmap.faces) == 1  # followed on every frame, the first too
+        fx, fy = cmap.faces[0][:2]
+        assert x - 5 <= fx <= x + 75 and y - 5 <= fy <= y + 90
+    assert both[0] and not any(both[1:]), (runs, detected)
+    # each as often as asked: a detection put off by a frame, never skipped
+    assert sum(runs) == len(range(0, 25, saliency_every))
+    gaps = np.diff(np.flatnonzero(detected))
+    assert gaps.min() >= faces_every and gaps.max() <= faces_every + 1, detected
+
+
 def test_bad_frames_and_settings_refused(model: SaliencyModel) -> None:
     tmap = TemporalContentMap(SIZE, model)
     with pytest.raises(ValueError, match="frame is"):
