@@ -343,8 +343,8 @@ class Runtime:
             self._fault("depth", f"depth frame unusable: {e}")
             return
         self.telemetry.count("estimates")
-        if est.coverage < s.min_coverage:
-            self._fault(*self.surfaces.depth_problem(frame, est.coverage))
+        if est.seen_coverage < s.min_coverage or est.coverage == 0.0:
+            self._fault(*self.surfaces.depth_problem(frame, est.seen_coverage))
             return
         self._clear("depth", "range")
         filt = self.surfaces.filter

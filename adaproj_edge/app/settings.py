@@ -46,7 +46,9 @@ class AppSettings:
     refine_at_frames: tuple[int, ...] = (3, 6, 12)
     settle_frames: int = 3  # depth frames averaged before the refinement once settled
     depth_timeout_s: float = 0.5
-    min_coverage: float = 0.3
+    min_coverage: float = (
+        0.3  # of the lattice measured by a frame (before the cuts): less is a dropout
+    )
     pose_cache_size: int = 6
     caching: bool = True
     warm_start: bool = True

@@ -15,6 +15,7 @@ import pytest
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.calibration import Calibration, DepthCameraModel
+from adaproj_edge.geometry.depth.cuts import keep_aimed_piece
 from adaproj_edge.geometry.depth.estimate import SurfaceEstimator
 from adaproj_edge.geometry.depth.lattice import lattice_uv
 from adaproj_edge.geometry.depth.sensor import SensorModel
@@ -210,3 +211,21 @@ def test_without_cuts_the_surface_spans_the_silhouette() -> None:
     est = SurfaceEstimator(CAL, DepthSettings(cut=False)).estimate(z, (21, 21))
     got = est.surface.points[..., 2].astype(np.float64)
     assert spanning_triangles(got, node_labels(box, (21, 21))) > 0
+
+
+def test_the_aimed_piece_is_kept_unless_it_is_a_sliver_of_the_largest() -> None:
+    # a lattice in three pieces: a wall (left, 60 nodes), a box (right, 24 nodes) and a
+    # chair leg (a column of 3 nodes), separated by unknown columns
+    s = np.full((6, 20), np.nan)
+    s[:, 0:10] = 2.5
+    s[:, 11:15] = 1.6
+    s[2:5, 17] = 1.2
+    kept = lambda aim: np.isfinite(keep_aimed_piece(s, aim))  # noqa: E731
+    # the box under the aim: 24 of the wall's 60 nodes, above a quarter: the box
+    assert kept((3, 12)).sum() == 24 and kept((3, 12))[3, 12]
+    # the leg under the aim (3 nodes): passed over for the largest piece, the wall
+    assert kept((3, 17)).sum() == 60 and kept((3, 17))[0, 0]
+    # no piece under the aim: the largest
+    assert kept((0, 19)).sum() == 60
+    # with no share asked, the aimed piece whatever its size
+    assert np.isfinite(keep_aimed_piece(s, (3, 17), min_share=0.0)).sum() == 3

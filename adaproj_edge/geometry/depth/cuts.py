@@ -19,9 +19,9 @@ Before that, a node the smoothing moved by more than that noise allows gets its
 measured depth back (:func:`keep_edges`): near a silhouette a fit may reach across it
 and put the node between the two sides. At a cut between neighbours the farther
 node is dropped (no triangle of the lattice then spans the jump); a gap at a cut is
-never filled in. Of the pieces left
-(4-connected known nodes), the one under the projector's aim (its optical axis) is
-kept, else the largest; the others are dropped (no content stretched over the
+never filled in. Of the pieces left (4-connected known nodes), the one under the
+projector's aim (its optical axis) is kept, else (none there, or one under a quarter of
+the largest's size) the largest; the others are dropped (no content stretched over the
 "curtains" at jumps).
 
 Pure: arrays in, arrays out.
@@ -109,17 +109,24 @@ def cut_lattice(
     return np.where(drop, np.nan, s), blocked
 
 
-def keep_aimed_piece(s: FloatArray, aim: tuple[int, int]) -> FloatArray:
+MIN_AIMED_SHARE = 0.25  # of the largest piece's nodes: a smaller aimed piece is passed over
+
+
+def keep_aimed_piece(
+    s: FloatArray, aim: tuple[int, int], min_share: float = MIN_AIMED_SHARE
+) -> FloatArray:
     """``s`` (rows, cols) with only one piece of 4-connected known nodes kept: the one
-    holding node ``aim`` (row, col), else the largest."""
+    holding node ``aim`` (row, col) when it has at least ``min_share`` of the largest
+    piece's nodes, else the largest (the aim on a chair's leg or a gap between objects
+    would leave too little to project on)."""
     known = np.isfinite(s)
     labels, n = ndimage.label(known)
     if n <= 1:
         return s
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
     keep = int(labels[aim])
-    if keep == 0:
-        sizes = np.bincount(labels.ravel())
-        sizes[0] = 0
+    if keep == 0 or sizes[keep] < min_share * sizes.max():
         keep = int(np.argmax(sizes))
     return np.where(labels == keep, s, np.nan)
 

@@ -42,17 +42,27 @@ class SurfaceEstimate:
         Nodes filled in from neighbours (a hole in the depth data).
     frames : int
         Depth frames averaged into this estimate.
+    seen : float or None
+        Fraction of lattice nodes the depth frame measured, before the pieces off the
+        aim were dropped at depth jumps (None: as :attr:`coverage`).
     """
 
     surface: Surface
     confidence: NDArray[np.float32]
     filled: BoolArray
     frames: int = 1
+    seen: float | None = None
 
     @property
     def coverage(self) -> float:
         """Fraction of lattice nodes with a point."""
         return self.surface.valid_fraction
+
+    @property
+    def seen_coverage(self) -> float:
+        """Fraction of lattice nodes the frame measured (a frame that sees a room is not
+        a dropout because the piece under the aim is small)."""
+        return self.coverage if self.seen is None else self.seen
 
     @property
     def mean_confidence(self) -> float:
@@ -90,6 +100,8 @@ class SurfaceEstimator:
         self.sensor = SensorModel.of(calibration.depth, self.settings.sensor)
         self.work = Workspace()
         self._rays: dict[tuple[int, int], FloatArray] = {}
+        # the last lattice's measured fraction, before the pieces off the aim went
+        self.seen = 0.0
 
     def rays(self, shape: tuple[int, int]) -> FloatArray:
         """Projector rays (rows, cols, 3) of the lattice ``shape`` (read-only, kept)."""
@@ -122,7 +134,7 @@ class SurfaceEstimator:
             points, np.where(filled, 0.5, sup), filled, self.calibration, self.settings
         )
         surface = Surface(points.astype(np.float32), p, {"source": "depth"})
-        est = SurfaceEstimate(surface, conf, filled & np.isfinite(s))
+        est = SurfaceEstimate(surface, conf, filled & np.isfinite(s), seen=self.seen)
         meta = {"source": "depth", **est.summary()}
         del meta["frames"]  # the estimate's own field, not the surface's
         return replace(est, surface=replace(surface, meta=meta))
@@ -168,6 +180,7 @@ class SurfaceEstimator:
             s = keep_edges(s, raw, self.sensor, settings.jump_sigmas)
             s, blocked = cut_lattice(s, self.sensor, settings.jump_sigmas, settings.jump_slope)
         s, filled = fill_holes(s, settings.max_hole_nodes, blocked)
+        self.seen = float(np.mean(np.isfinite(s)))
         if settings.cut:
             K = p.K
             s = keep_aimed_piece(s, aim_node(shape, (K[0, 2], K[1, 2]), (p.width, p.height)))
