@@ -342,4 +342,4 @@ def test_distinct_refusals_keep_the_log_bounded(
     assert max(map(len, lines)) < 1000 and sum(map(len, lines)) < 50_000, len(lines)
     assert len(server._refusals.reasons) <= server._refusals.kinds + 1
     print(f"seconds per 5000 refusals: {' '.join(f'{t:.2f}' for t in times)}")
-    assert times[-1] < 2 * times[0] + 0.5
+    assert min(times[3:]) < 2 * min(times[:3]) + 0.2  # minima: robust to a busy machine
