@@ -135,10 +135,7 @@ def decode_image(data: bytes, what: str, *, gray: bool = False) -> NDArray[np.ui
     size = _header_size(data)
     if size is None:
         if data[:8] == b"\x89PNG\r\n\x1a\n" or data[:2] == b"\xff\xd8":
-            raise ImageError(
-                f"{what} is not a readable image: its size cannot be read from its header"
-                " (damaged?)"
-            )
+            raise ImageError(f"{what} is not a readable image (no size in its header)")
         raise ImageError(f"{what} is not a readable image (PNG or JPEG expected)")
     w, h = size
     if w * h > MAX_IMAGE_PIXELS:

@@ -54,8 +54,8 @@ from mcap.records import (
 from adaproj_edge.errors import InputError
 
 MAGIC = b"\x89MCAP0\r\n"
-MAX_RECORD = 256 * 2**20
-"""Bytes of one record read at most (a session's chunks are a few hundred KiB)."""
+MAX_RECORD = 64 * 2**20
+"""Bytes of one record read at most (a session's chunks and attachments are a few MiB at most)."""
 MAX_CHUNK = 32 * 2**20
 """Bytes a chunk may inflate to at most (and the largest zstd window taken)."""
 _RECORD = struct.Struct("<BQ")
