@@ -38,6 +38,7 @@ from adaproj_edge.link.ids import ADAPROJ_GROUP
 from adaproj_edge.link.message import HEADER
 from adaproj_edge.link.server import Server, serve
 from adaproj_edge.link.store import MAX_PENDING, ContentStore
+from tests.link.media import jpeg_segments
 
 FIELDS = ["d", "name", "off", "data", "len", "type", "image", "mask", "settings", "force"]
 NAMES = [
@@ -270,18 +271,6 @@ def _small_jpeg(w: int, h: int, color: bool, seed: int) -> bytes:
     return bytes(enc.tobytes())
 
 
-def _segments(jpeg: bytes) -> list[bytes]:
-    i, out = 2, []
-    while i < len(jpeg):
-        if jpeg[i + 1] == 0xDA:
-            out.append(jpeg[i:])
-            break
-        n = int.from_bytes(jpeg[i + 2 : i + 4], "big")
-        out.append(jpeg[i : i + 2 + n])
-        i += 2 + n
-    return out
-
-
 def _fake_sof(w: int, h: int) -> bytes:
     return b"\xff\xc0\x00\x0b\x08" + struct.pack(">HH", h, w) + b"\x01\x01\x11\x00"
 
@@ -294,7 +283,7 @@ def jpegs(draw: st.DrawFn) -> bytes:
     w, h = draw(st.integers(2, 40)), draw(st.integers(2, 40))
     jpeg = _small_jpeg(w, h, draw(st.booleans()), draw(st.integers(0, 99)))
     out = b"\xff\xd8"
-    for seg in _segments(jpeg)[1:]:
+    for seg in jpeg_segments(jpeg)[1:]:
         if draw(st.integers(0, 3)) == 0:
             out += draw(st.binary(max_size=6))  # stray bytes (libjpeg skips them)
         if draw(st.integers(0, 2)) == 0:
