@@ -62,3 +62,11 @@ def flag(value: Any, key: str) -> bool:
     if not isinstance(value, bool):
         raise InputError(f"{key} must be true or false, got {_shown(value)}")
     return value
+
+
+def number_list(value: Any, key: str, lo: float, hi: float, most: int) -> tuple[float, ...]:
+    """``value`` as a tuple of floats if it is a list of at most ``most`` finite numbers
+    in ``[lo, hi]``, else :class:`InputError`."""
+    if not isinstance(value, list | tuple) or len(value) > most:
+        raise InputError(f"{key} must be a list of at most {most} numbers, got {_shown(value)}")
+    return tuple(number(x, f"{key}[{i}]", lo, hi) for i, x in enumerate(value))

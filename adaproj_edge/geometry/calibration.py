@@ -11,6 +11,9 @@ The file format (``hw/calibration/<board>.toml``, and the JSON attachment
     K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
     distortion = [k1, k2, p1, p2, k3]   # optional: lens distortion, OpenCV's model and
                                         # order; absent (all zero) for a pinhole
+    vignetting = [a1, a2]   # optional: the lens's relative illumination
+                            # 1 + a1 r^2 + a2 r^4 (r: normalised radius, the tangent of
+                            # the angle off the axis); absent (all zero): none
     [depth]                # frame D, the depth-aligned OAK-D camera (read from the
     width = 640            # device on the board; stored in sessions)
     height = 400
@@ -24,9 +27,10 @@ The file format (``hw/calibration/<board>.toml``, and the JSON attachment
     verdict = "good"
     ...
 
-Files without ``distortion`` or ``[quality]`` (every nominal file) load as before;
-:meth:`Calibration.to_toml` writes the file, :meth:`Calibration.to_dict` the JSON of
-session attachments (``distortion`` only when not zero, ``quality`` only when set).
+Files without ``distortion``, ``vignetting`` or ``[quality]`` (every nominal file) load
+as before; :meth:`Calibration.to_toml` writes the file, :meth:`Calibration.to_dict` the
+JSON of session attachments (``distortion`` and ``vignetting`` only when not zero,
+``quality`` only when set).
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ from adaproj_edge import checks
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.fileio import read_input
+from adaproj_edge.geometry.irradiance import MAX_COEFFICIENT, Vignetting
 from adaproj_edge.geometry.projector import Projector
 
 FORMAT = "adaproj-calibration/1"
@@ -123,6 +128,8 @@ class Calibration:
     quality : dict, optional
         How the calibration was solved (``adaproj calibrate``): RMS, verdict, ...;
         None for a nominal file.
+    vignetting : Vignetting, optional
+        The projector lens's relative illumination; the default: none.
     """
 
     projector: Projector
@@ -131,6 +138,7 @@ class Calibration:
     R_P_I: FloatArray
     distortion: FloatArray = field(default_factory=lambda: np.zeros(5))
     quality: dict[str, Any] | None = None
+    vignetting: Vignetting = field(default_factory=Vignetting)
 
     def __post_init__(self) -> None:
         dist = np.zeros(5)
@@ -147,6 +155,7 @@ class Calibration:
             raise InputError("R_P_I must be a rotation matrix")
         object.__setattr__(self, "T_P_D", T)
         object.__setattr__(self, "R_P_I", R)
+        self.vignetting.check(self.projector)
 
     @classmethod
     def default(cls) -> Calibration:
@@ -168,6 +177,8 @@ class Calibration:
         projector: dict[str, Any] = {"width": p.width, "height": p.height, "K": p.K.tolist()}
         if np.any(self.distortion):
             projector["distortion"] = self.distortion.tolist()
+        if not self.vignetting.none:
+            projector["vignetting"] = list(self.vignetting.coefficients)
         out: dict[str, Any] = {
             "format": FORMAT,
             "projector": projector,
@@ -229,7 +240,16 @@ class Calibration:
             quality = data.get("quality")
             if quality is not None and not isinstance(quality, dict):
                 raise InputError("[quality] must be a table")
-            return cls(projector, depth, T, R, dist, quality)
+            vignetting = Vignetting(
+                checks.number_list(
+                    pj.get("vignetting", []),
+                    "[projector] vignetting",
+                    -MAX_COEFFICIENT,
+                    MAX_COEFFICIENT,
+                    2,
+                )
+            )
+            return cls(projector, depth, T, R, dist, quality, vignetting)
 
     @classmethod
     def from_json(cls, text: str | bytes, what: str = "calibration") -> Calibration:

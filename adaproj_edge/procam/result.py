@@ -72,8 +72,14 @@ def solve_capture(
     imu = solve_imu_rotation(motions, run.imu_t, run.imu_gyro, m.T_P_D[:3, :3], nominal.R_P_I)
     K = m.K.copy()
     K[0, 1] = 0.0
+    # the structured light does not measure the lens's vignetting: the nominal's is kept
     cal = Calibration(
-        Projector(K, p.width, p.height), nominal.depth, m.T_P_D, imu.R_P_I, m.distortion.copy()
+        Projector(K, p.width, p.height),
+        nominal.depth,
+        m.T_P_D,
+        imu.R_P_I,
+        m.distortion.copy(),
+        vignetting=nominal.vignetting,
     )
     return CalibrationResult(cal, nominal, sol, imu, run)
 

@@ -257,8 +257,11 @@ def gain_from_irradiance(
     le = np.full(irradiance.shape, np.inf)
     le[lit] = np.log(irradiance[lit])
     # only the picture constrains the target (a dim silhouette outside it shows black)
-    bounded = np.where(judged, le, np.inf)
     values = le[judged]
+    # the dimmest few (grazing) pixels neither set the cap nor pull the target down
+    # around them: they keep their light
+    floor = float(np.quantile(values, s.dim_quantile))
+    bounded = np.where(judged & (le >= floor), le, np.inf)
     total_before = float(np.sum(wj * np.exp(values)))
     want = s.budget * total_before
 
@@ -268,11 +271,11 @@ def gain_from_irradiance(
     # L1-Lipschitz per pixel step: at most sqrt(2) times that in any direction
     bound = math.log1p(s.gradient_per_deg) * deg_per_px / math.sqrt(2.0)
     reasons = []
-    env = _lower_envelope(bounded, bound)
+    env = np.minimum(_lower_envelope(bounded, bound), le)
     loosened = 0
     while total_of(env[judged]) < want and loosened < MAX_LOOSEN:
         loosened += 1
-        env = _lower_envelope(bounded, bound * 2**loosened)
+        env = np.minimum(_lower_envelope(bounded, bound * 2**loosened), le)
     before = _ratio(values)
     if total_of(env[judged]) < want:
         reason = (
@@ -284,7 +287,6 @@ def gain_from_irradiance(
             f"the gradient bound was loosened {2**loosened}x to keep "
             f"{s.budget:.0%} of the brightness"
         )
-    floor = float(np.quantile(values, s.dim_quantile))
     cap = floor + math.log(s.evenness)
     kept = _capped_total(np.exp(env[judged]), wj)
     if kept(math.exp(cap)) < want:
