@@ -85,7 +85,7 @@ def main() -> None:
     )
     print(head)
     for name in args.surfaces.split(","):
-        case = grey_case(name, projector, eye, settings, mode=args.mode)  # type: ignore[arg-type]
+        case = grey_case(name, projector, eye, settings, mode=args.mode)
         b, a, gm = case.before, case.after, case.gain
         deg = degrees_per_pixel(projector) * projector.width / gm.light.shape[1]
         print(

@@ -56,6 +56,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         default=DEFAULT_VIEWER,
         help="viewer position X,Y,Z in metres, projector frame (default %(default)s)",
     )
+    p.add_argument(
+        "--compensate",
+        action=argparse.BooleanOptionalAction,
+        default=False,
+        help="even out the projector's light over the picture (a gain from the surface); "
+        "the picture then shows the light's falloff on the surface (default: off)",
+    )
     p.add_argument("--out", type=Path, required=True, help="picture to write (.png or .jpg)")
     p.set_defaults(run=run)
 
@@ -67,25 +74,39 @@ def simulate(
     settings: WarpSettings,
     eye: tuple[float, float, float],
     name: str = "the surface",
+    compensate: bool = False,
 ) -> tuple[NDArray[np.uint8], Projection, Projection]:
     """The picture input | standard | corrected, titled with the surface's ``name`` and
-    where the viewer stands, and the two projections."""
+    where the viewer stands, and the two projections. With ``compensate`` the corrected
+    frame carries the brightness gain (:mod:`adaproj_edge.render.photometry`) and both
+    projections are shown as bright as the projector's light makes them."""
+    import numpy as np
+
+    from adaproj_edge.render.photometry import apply_gain, gain_map
     from adaproj_edge.render.project import project
     from adaproj_edge.render.sheet import row, titled
-    from adaproj_edge.render.viewer import view, viewer_for
+    from adaproj_edge.render.viewer import lit_frame, view, viewer_for
     from adaproj_edge.warp.engine import WarpSettings
 
     plain = project(surface, image, None, WarpSettings(mode="standard", grid=settings.grid))
     corrected = project(surface, image, cmap, settings)
     viewer = viewer_for(surface, eye)
+    frames = [plain.frame, corrected.frame]
+    label = f"adaproj ({settings.mode})"
+    note = "grey: surface left dark"
+    if compensate:
+        gain = gain_map(surface, picture=np.isfinite(corrected.map_xy[..., 0]))
+        frames = [lit_frame(surface, plain.frame), lit_frame(surface, apply_gain(frames[1], gain))]
+        label += ", light evened out"
+        note += "; brightness as the projector's light falls on the surface"
     picture = row(
-        [image, view(surface, plain.frame, viewer), view(surface, corrected.frame, viewer)],
-        ["input", "standard projector", f"adaproj ({settings.mode})"],
+        [image, *(view(surface, f, viewer) for f in frames)],
+        ["input", "standard projector", label],
     )
     x, y, z = eye
     title = (
         f"{name}, as a viewer at x {x:+.2f}, y {y:+.2f}, z {z:+.2f} m from the projector "
-        "sees it (x right, y down); grey: surface left dark"
+        f"sees it (x right, y down); {note}"
     )
     return titled(picture, [title]), plain, corrected
 
@@ -106,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
     cmap = content_map(image, mask, given, DEFAULT_THRESHOLD, saliency=args.mode == "content")
     settings = WarpSettings(mode=args.mode, grid=args.grid)
     name = Path(args.surface).name
-    picture, _, _ = simulate(surface, image, cmap, settings, args.viewer, name)
+    picture, _, _ = simulate(surface, image, cmap, settings, args.viewer, name, args.compensate)
     write_image(args.out, picture)
     print(f"wrote {args.out}")
     return 0

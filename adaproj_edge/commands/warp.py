@@ -50,6 +50,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     )
     p.add_argument("--out", type=Path, required=True, help="warp file to write (.npz)")
     p.add_argument("--frame", type=Path, help="also write the projector frame (.png or .jpg)")
+    p.add_argument(
+        "--compensate",
+        action=argparse.BooleanOptionalAction,
+        default=False,
+        help="even out the projector's light over the picture: the frame carries a "
+        "brightness gain made from the surface, and the report its figures (default: off)",
+    )
     p.set_defaults(run=run)
 
 
@@ -81,8 +88,16 @@ def run(args: argparse.Namespace) -> int:
     # the surface's own points
     result = show(keystone_surface(surface) if step == "keystone" else surface, image, warp)
     result.warp.save(args.out)
+    frame, photometry = result.frame, None
+    if args.compensate:
+        import numpy as np
+
+        from adaproj_edge.render.photometry import apply_gain, gain_map
+
+        gain = gain_map(surface, picture=np.isfinite(result.map_xy[..., 0]))
+        frame, photometry = apply_gain(frame, gain), gain.summary()
     if args.frame is not None:
-        write_image(args.frame, result.frame)
+        write_image(args.frame, frame)
     overall, salient = measure(
         result.map_xy, surface, None if cmap is None else cmap.full_size() >= cmap.threshold
     )
@@ -100,5 +115,8 @@ def run(args: argparse.Namespace) -> int:
     report["step"] = step
     if down:
         report["down"] = [{"step": s, "reason": r} for s, r in down]
+    if photometry is not None:
+        # the light over the picture before and after, as the surface predicts it
+        report["photometry"] = photometry
     print(json.dumps(report, indent=1))
     return 0

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
+from adaproj_edge.geometry.irradiance import Vignetting, relative_irradiance
 from adaproj_edge.geometry.surface import Surface
 
 UNLIT = 45
@@ -84,6 +85,27 @@ def view(surface: Surface, frame: NDArray[np.uint8], viewer: Viewer) -> NDArray[
         filled = cv2.inpaint(picture, holes.astype(np.uint8), 1, cv2.INPAINT_TELEA)
         picture[holes] = filled[holes]
     return picture
+
+
+def lit_frame(
+    surface: Surface,
+    frame: NDArray[np.uint8],
+    gamma: float = 2.2,
+    vignetting: Vignetting | None = None,
+) -> NDArray[np.uint8]:
+    """``frame`` (H, W[, 3]) as bright as it looks on ``surface``: each pixel's value
+    scaled by ``(E / E_ref) ** (1 / gamma)``, ``E`` its relative irradiance and
+    ``E_ref`` the surface's 99.9th percentile (the same for every frame on this
+    surface, so a plain and a compensated frame compare). A Lambertian surface looks
+    the same from everywhere, so :func:`view` of the result shows the falloff."""
+    p = surface.projector
+    dense = surface.dense()
+    e = relative_irradiance(dense.points.astype(np.float64), p, p.pixel_grid(), vignetting)
+    ref = float(np.nanpercentile(e, 99.9)) if np.any(np.isfinite(e)) else 1.0
+    scale = np.power(np.clip(np.nan_to_num(e / ref, nan=1.0), 0.0, 1.0), 1.0 / gamma)
+    if frame.ndim == 3:
+        scale = scale[..., None]
+    return np.asarray(np.clip(np.rint(frame * scale), 0, 255), dtype=np.uint8)
 
 
 def viewer_for(surface: Surface, eye: tuple[float, float, float]) -> Viewer:

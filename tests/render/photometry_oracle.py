@@ -16,6 +16,7 @@ application are the code under test).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -103,7 +104,7 @@ class Seen:
         return float(np.expm1(worst))
 
 
-def _pair(a: NDArray[np.generic], dy: int, dx: int) -> tuple[NDArray[np.generic], ...]:
+def _pair(a: NDArray[Any], dy: int, dx: int) -> tuple[NDArray[Any], NDArray[Any]]:
     """The values of ``a`` at (y + dy, x + dx) and at (y, x), wherever both exist
     (``dy`` >= 0)."""
     h, w = a.shape
