@@ -21,9 +21,15 @@ it vary, and no dimmer than needed. Here:
   instead;
 - even: ``B`` is capped at ``evenness`` times the dimmest ``E`` (a low quantile, so a
   few grazing pixels do not dim the picture);
-- within the budget: when that cap would make the mean brightness less than
-  ``budget`` times the uncompensated mean, the cap is raised until it does not (the
-  picture is left less even; :attr:`GainMap.reason` says so).
+- within the budget: the mean brightness over the picture (weighted by surface area:
+  what a viewer sees) stays at least ``budget`` times the uncompensated mean. When the
+  smooth target alone dims more, its gradient bound is loosened in doublings; when the
+  cap does, the cap is raised until the budget holds (the picture is left less even;
+  :attr:`GainMap.reason` says so and it is logged). Light that cannot be evened out
+  smoothly within the budget at all is left as it is (a gain of 1).
+
+The gain never brightens, and the picture's max/min never grows: every pixel keeps at
+least the light of the dimmest judged pixel, or its own.
 
 The gain is for light; the pixel values are multiplied by ``gain ** (1 / gamma)`` (the
 projector's response ``light ~ value ** gamma``), as an 8-bit fixed-point map at the
@@ -256,10 +262,10 @@ def gain_from_irradiance(
     wj = np.where(np.isfinite(weight[judged]), weight[judged], 0.0)
     le = np.full(irradiance.shape, np.inf)
     le[lit] = np.log(irradiance[lit])
-    # only the picture constrains the target (a dim silhouette outside it shows black)
     values = le[judged]
-    # the dimmest few (grazing) pixels neither set the cap nor pull the target down
-    # around them: they keep their light
+    # only the picture constrains the target (a dim silhouette outside it shows black),
+    # and its dimmest few (grazing) pixels neither set the cap nor pull the target
+    # down around them: they keep their own light
     floor = float(np.quantile(values, s.dim_quantile))
     bounded = np.where(judged & (le >= floor), le, np.inf)
     total_before = float(np.sum(wj * np.exp(values)))
