@@ -46,6 +46,7 @@ from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
 from adaproj_edge.hal.serial import PySerialPort, SerialPort
 from adaproj_edge.link.server import Server, serve
 from adaproj_edge.link.store import ContentStore
+from adaproj_edge.render.photometry import PhotometrySettings
 from adaproj_edge.session.recorder import SessionTap
 from adaproj_edge.session.writer import SessionWriter
 
@@ -260,11 +261,16 @@ def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float
 
 
 def board_settings(board: Board, settings: AppSettings) -> AppSettings:
-    """``settings`` with the board's display: refresh rate and stabilisation margin."""
+    """``settings`` with the board's display: refresh rate, stabilisation margin and
+    the brightness gain (made at the display maps' scale when the board turns it on,
+    unless ``settings`` already has photometry settings of its own)."""
     d = settings.display
     stabiliser = replace(d.stabiliser, margin=board.display.stabilise_margin)
     display = replace(d, refresh_hz=board.display.refresh_hz, stabiliser=stabiliser)
-    return replace(settings, display=display)
+    photometry = settings.photometry
+    if board.display.compensate and photometry is None:
+        photometry = PhotometrySettings(scale=settings.map_scale)
+    return replace(settings, display=display, photometry=photometry)
 
 
 def run_device(

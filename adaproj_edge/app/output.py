@@ -18,6 +18,7 @@ from adaproj_edge.arrays import Image
 from adaproj_edge.errors import ImageError
 from adaproj_edge.hal.clock import Clock
 from adaproj_edge.render.frame import RemapMaps, render_frame
+from adaproj_edge.render.photometry import GainMap, apply_gain
 from adaproj_edge.warp.warpmap import Warp
 
 FrameHook = Callable[[int, Image, dict[str, Any]], None]
@@ -58,6 +59,7 @@ class Output:
         self.frame: Image = np.zeros((size[1], size[0], 3), np.uint8)
         self.warp: Warp | None = None
         self.maps: RemapMaps | None = None
+        self.gain: GainMap | None = None
         self._good: Image | None = None
         self._canvas: Image | None = None
         self._kind = "plain"
@@ -68,9 +70,10 @@ class Output:
         """The last frame rendered, without the fault marks (None before any)."""
         return self._good
 
-    def set(self, warp: Warp, maps: RemapMaps) -> None:
-        """The warp to show from now on, and its maps."""
-        self.warp, self.maps = warp, maps
+    def set(self, warp: Warp, maps: RemapMaps, gain: GainMap | None = None) -> None:
+        """The warp to show from now on, its maps and the brightness gain its frames
+        carry (None: frames as rendered)."""
+        self.warp, self.maps, self.gain = warp, maps, gain
 
     def render(self, image: Image, reason: str, kind: str, notify: bool = True) -> Image | None:
         """Draw ``image`` through the current maps and show it; returns the frame shown
@@ -84,6 +87,9 @@ class Output:
             self._canvas = frame  # drawn into again next time
             if frame.ndim == 2:
                 frame = np.asarray(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR), np.uint8)
+        if self.gain is not None:  # in place: the frame is drawn anew next time
+            with times.timer("gain_apply"):
+                frame = apply_gain(frame, self.gain, frame)
         self._good = frame
         self._kind = kind
         with times.timer("show"):

@@ -161,7 +161,7 @@ class Runtime:
         self.upright = Upright(UprightSettings(gravity=s.gravity))
         self.gestures = Gestures(s.double_press_s, s.long_press_s, s.calibrate_hold_s)
         self.surfaces = SurfaceSource(calibration, s, t.times)
-        self.warps = WarpSource(calibration.projector, s, t)
+        self.warps = WarpSource(calibration.projector, s, t, calibration.vignetting)
         self.faults = Faults()
         self.state = State.BOOT
         self.plain = False
@@ -425,7 +425,7 @@ class Runtime:
             self.upright = Upright(UprightSettings(gravity=s.gravity))
             self.screen.recalibrate(calibration.projector, calibration.R_P_I)
             self.surfaces = SurfaceSource(calibration, s, t.times)
-            self.warps = WarpSource(calibration.projector, s, t)
+            self.warps = WarpSource(calibration.projector, s, t, calibration.vignetting)
             self.surface = None
         self._event("calibrated", changed=calibration is not None, reason=reason)
         self._set_state(State.IDLE)
@@ -535,7 +535,7 @@ class Runtime:
         self.surface, self._surface_frames = surface, frames
         self._shown_depth = surface.points[..., 2].astype(np.float64)
         self.output.content = item.name
-        self.output.set(warp, maps)
+        self.output.set(warp, maps, self.warps.gain(entry, surface))
         self._shown_kind, self._entry = kind, entry
         frame = self.output.render(self._image(), reason, kind, notify=False)
         t_end = time.perf_counter()
@@ -646,7 +646,7 @@ class Runtime:
                 self._fault("warp", f"no warp for this clip frame: {e}")
                 return
             self._stepped_down(warp, "clip")
-            self.output.set(warp, maps)
+            self.output.set(warp, maps, self.warps.gain(self._entry, self.surface))
         self.output.render(step.image, "clip", kind)
         pb.shown(self._now())
 

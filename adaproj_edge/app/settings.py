@@ -9,6 +9,7 @@ from adaproj_edge.geometry.planes import PlaneSettings
 from adaproj_edge.motion.gravity import GravitySettings
 from adaproj_edge.motion.stabiliser import StabiliserSettings
 from adaproj_edge.motion.tracker import MotionSettings
+from adaproj_edge.render.photometry import PhotometrySettings
 from adaproj_edge.render.reproject import Interpolation
 from adaproj_edge.warp.warpmap import Grid
 
@@ -67,6 +68,8 @@ class AppSettings:
     display: DisplaySettings = field(default_factory=DisplaySettings)
     depth: DepthSettings = field(default_factory=DepthSettings)
     planes: PlaneSettings | None = field(default_factory=PlaneSettings)  # None: no snapping
+    # the brightness gain made from the surface, per pose (None: frames as rendered)
+    photometry: PhotometrySettings | None = None
 
     def grid_shape(self) -> tuple[int, int]:
         """The surface lattice: one node per warp grid vertex."""

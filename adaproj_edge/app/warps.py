@@ -16,6 +16,10 @@ timed as ``re_place``, counted as ``re_placed``).
 Every map drawn for the display has the content inset by the stabilisation margin
 (:func:`~adaproj_edge.render.reproject.inset_warp`): the warps themselves (cached,
 warm-started, saved, probed) are the planner's.
+
+With ``settings.photometry`` set, a pose's entry also keeps the brightness gain made
+from its surface (:mod:`adaproj_edge.render.photometry`, made when first shown): a
+cached pose's frames cost one multiply more, nothing else.
 """
 
 from __future__ import annotations
@@ -29,11 +33,13 @@ from adaproj_edge.app.settings import AppSettings
 from adaproj_edge.app.telemetry import Telemetry
 from adaproj_edge.arrays import Float32Array, FloatArray
 from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.geometry.irradiance import Vignetting
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.display_maps import DisplayMapBuilder
 from adaproj_edge.render.frame import RemapMaps
 from adaproj_edge.render.maps import PixelWeights
+from adaproj_edge.render.photometry import GainMap, gain_map
 from adaproj_edge.render.reproject import inset_warp
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import WarpCache
@@ -60,6 +66,8 @@ class PoseEntry:
         The device's orientation (rotation vector) when it was made.
     maps : RemapMaps or None
         The content-free warp's own display maps, made when first shown.
+    gain : GainMap or None
+        The brightness gain of its surface, made when first shown (with photometry on).
     """
 
     content_free: ContentFreeWarp
@@ -68,6 +76,7 @@ class PoseEntry:
     up: FloatArray
     orientation: FloatArray
     maps: RemapMaps | None = None
+    gain: GainMap | None = None
 
     @property
     def depth(self) -> FloatArray:
@@ -91,11 +100,20 @@ class WarpSource:
         refinement factor, warm starts, caching and the pose cache's tuning.
     telemetry : Telemetry
         Where the stage times and cache counters go.
+    vignetting : Vignetting, optional
+        The projector lens's falloff (the calibration's), for the brightness gain.
     """
 
-    def __init__(self, projector: Projector, settings: AppSettings, telemetry: Telemetry) -> None:
+    def __init__(
+        self,
+        projector: Projector,
+        settings: AppSettings,
+        telemetry: Telemetry,
+        vignetting: Vignetting | None = None,
+    ) -> None:
         s = self.settings = settings
         self.projector = projector
+        self.vignetting = vignetting
         self.telemetry = telemetry
         self.times = telemetry.times
         self.caching = s.caching
@@ -198,6 +216,21 @@ class WarpSource:
             with self.times.timer("map"):
                 entry.maps = self.display.maps(self.shown(entry.warp), entry.weights)
         return entry.maps
+
+    def gain(self, entry: PoseEntry, surface: Surface) -> GainMap | None:
+        """The brightness gain of ``entry``'s pose (``surface``: the one it was made
+        for, or one within the cache's tolerance), made once per entry and timed as
+        ``gain``; None with photometry off."""
+        ph = self.settings.photometry
+        if ph is None:
+            return None
+        if entry.gain is None:
+            with self.times.timer("gain"):
+                warp = entry.warp
+                small = entry.weights.map(warp.image_xy, warp.content_size)
+                picture = np.isfinite(small[..., 0])
+                entry.gain = gain_map(surface, self.vignetting, ph, picture=picture)
+        return entry.gain
 
     def content_aware(
         self,

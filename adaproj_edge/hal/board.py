@@ -18,6 +18,8 @@ Format::
     device = "/dev/fb0"
     refresh_hz = 60.0          # used when the driver cannot wait for vertical sync
     stabilise_margin = 0.04    # room for image stabilisation, of the frame per side; 0: off
+    compensate = false         # even out the projector's light over the picture (a gain
+                               # made from the surface: docs/photometry.md)
     [depth]                # any field of StereoSettings
     fps = 15.0
     [serial]
@@ -73,17 +75,20 @@ class ImuSettings:
 
 @dataclass(frozen=True)
 class DisplayConfig:
-    """The projector's framebuffer, its refresh rate (Hz) and the stabilisation margin
-    (a fraction of the frame's width and height on each side; 0 turns it off)."""
+    """The projector's framebuffer, its refresh rate (Hz), the stabilisation margin
+    (a fraction of the frame's width and height on each side; 0 turns it off) and
+    whether frames carry the brightness gain made from the surface."""
 
     device: str = "/dev/fb0"
     refresh_hz: float = 60.0
     stabilise_margin: float = 0.04
+    compensate: bool = False
 
     def __post_init__(self) -> None:
         checks.text(self.device, "device")
         checks.number(self.refresh_hz, "refresh_hz", 1.0, 1000.0)
         checks.number(self.stabilise_margin, "stabilise_margin", 0.0, 0.2)
+        checks.flag(self.compensate, "compensate")
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,102 @@
+"""The brightness gain on the device: off unless the board turns it on (a checked
+flag), made once per pose and kept with it (a cached pose costs no new gain), and
+applied to every frame the output renders."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, cast
+
+import numpy as np
+import pytest
+
+from adaproj_edge.app.display_loop import DisplayLoop
+from adaproj_edge.app.live import board_settings
+from adaproj_edge.app.output import Output
+from adaproj_edge.app.settings import AppSettings
+from adaproj_edge.app.status import Faults
+from adaproj_edge.app.telemetry import Telemetry
+from adaproj_edge.app.warps import WarpSource
+from adaproj_edge.errors import InputError
+from adaproj_edge.geometry.analytic import simulate_surface
+from adaproj_edge.geometry.irradiance import Vignetting
+from adaproj_edge.geometry.projector import Projector
+from adaproj_edge.hal.board import Board
+from adaproj_edge.hal.clock import VirtualClock
+from adaproj_edge.render.frame import render_frame
+from adaproj_edge.render.photometry import PhotometrySettings, apply_gain
+from adaproj_edge.warp.engine import WarpSettings
+from tests.hal.test_board import write_board
+
+SIZE = (800, 600)
+
+
+def test_the_board_switch_is_off_by_default_and_checked(tmp_path: Path) -> None:
+    assert not Board.load("rpi5-oakd").display.compensate
+    assert board_settings(Board.load("rpi5-oakd"), AppSettings()).photometry is None
+    on = Board.load(write_board(tmp_path, "[display]\ncompensate = true\n"))
+    got = board_settings(on, AppSettings()).photometry
+    assert got == PhotometrySettings(scale=AppSettings().map_scale)
+    own = PhotometrySettings(evenness=1.02)  # settings given explicitly win
+    assert board_settings(on, AppSettings(photometry=own)).photometry is own
+    with pytest.raises(InputError) as e:
+        Board.load(write_board(tmp_path, "[display]\ncompensate = 1\n"))
+    assert "[display] compensate" in str(e.value) and "true or false" in str(e.value)
+
+
+def test_a_pose_keeps_its_gain() -> None:
+    s = simulate_surface("corner", Projector.default(640, 400))
+    ws = WarpSettings(mode="content")
+    o = np.zeros(3)
+    off = WarpSource(s.projector, AppSettings(), Telemetry(100))
+    entry, _ = off.pose(s, 5, 0, o, SIZE, ws)
+    assert off.gain(entry, s) is None and entry.gain is None
+    on = WarpSource(
+        s.projector,
+        AppSettings(photometry=PhotometrySettings(scale=4)),
+        Telemetry(100),
+        Vignetting((-0.3, 0.0)),
+    )
+    entry, hit = on.pose(s, 5, 0, o, SIZE, ws)
+    gain = on.gain(entry, s)
+    assert not hit and gain is not None and entry.gain is gain
+    again, hit = on.pose(s, 5, 0, o, SIZE, ws)
+    assert hit and again is entry and on.gain(again, s) is gain  # made once per pose
+    assert len(on.times.samples["gain"]) == 1
+    assert gain.ratio_before > 1.5 and gain.ratio_after < gain.ratio_before
+    assert float(gain.light.max()) <= 1.0 < gain.ratio_before
+
+
+class _Screen:
+    """Keeps what is published (the display loop's place)."""
+
+    def __init__(self) -> None:
+        self.frames: list[np.ndarray] = []
+
+    def publish(self, frame: np.ndarray, marks: list[str], shown: Any, t_ns: int) -> None:
+        self.frames.append(frame.copy())
+
+
+def test_the_output_applies_the_gain() -> None:
+    s = simulate_surface("corner", Projector.default(640, 400))
+    source = WarpSource(s.projector, AppSettings(photometry=PhotometrySettings()), Telemetry(100))
+    entry, _ = source.pose(s, 5, 0, np.zeros(3), SIZE, WarpSettings(mode="content"))
+    maps = source.content_free_maps(entry)
+    gain = source.gain(entry, s)
+    assert gain is not None
+    screen = _Screen()
+    t = Telemetry(100)
+    out = Output(cast(DisplayLoop, screen), VirtualClock(0), Faults(), t, (640, 400))
+    image = np.full((SIZE[1], SIZE[0], 3), 200, np.uint8)
+    out.set(entry.warp, maps)
+    first = out.render(image, "test", "content-free")
+    assert first is not None
+    plain = first.copy()  # the output draws into one buffer
+    out.set(entry.warp, maps, gain)
+    shown = out.render(image, "test", "content-free")
+    assert shown is not None
+    # the same calls on the same inputs: bit for bit
+    assert np.array_equal(shown, apply_gain(render_frame(image, maps), gain))
+    assert np.array_equal(screen.frames[0], render_frame(image, maps))
+    assert np.all(shown <= plain) and np.any(shown < plain)
+    assert len(t.times.samples["gain_apply"]) == 1
