@@ -535,7 +535,8 @@ class Runtime:
         self.surface, self._surface_frames = surface, frames
         self._shown_depth = surface.points[..., 2].astype(np.float64)
         self.output.content = item.name
-        self.output.set(warp, maps, self.warps.gain(entry, surface))
+        gain = self.warps.gain(entry, surface)
+        self.output.set(warp, maps, gain)
         self._shown_kind, self._entry = kind, entry
         frame = self.output.render(self._image(), reason, kind, notify=False)
         t_end = time.perf_counter()
@@ -566,6 +567,7 @@ class Runtime:
             probes=probes(warp),
             step=step,
             update_ms=round((t_end - t_update) * 1e3, 3),  # wall clock: not a decision
+            **({} if gain is None else {"photometry": gain.summary()}),
         )
 
     def _stepped_down(self, warp: Warp, reason: str) -> str:

@@ -8,10 +8,13 @@ import logging
 import sys
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from adaproj_edge.commands._outputs import check_output_dir
 from adaproj_edge.resources import default_session
+
+if TYPE_CHECKING:
+    from adaproj_edge.app.settings import AppSettings
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +50,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "no correction for the hand's motion)",
     )
     p.add_argument(
+        "--compensate",
+        action=argparse.BooleanOptionalAction,
+        default=False,
+        help="even out the projector's light over the picture (a gain made from each "
+        "pose's surface; each update in summary.json gets its figures; default: off)",
+    )
+    p.add_argument(
         "--calibration",
         default=None,
         metavar="FILE.toml",
@@ -56,15 +66,25 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.set_defaults(run=run)
 
 
+def replay_settings(args: argparse.Namespace) -> AppSettings:
+    """The runtime's settings the options ask for (cache, warm starts, the gain)."""
+    from adaproj_edge.app.settings import AppSettings
+    from adaproj_edge.render.photometry import PhotometrySettings
+
+    settings = replace(AppSettings(), caching=not args.no_cache, warm_start=not args.no_warm_start)
+    if args.compensate:
+        settings = replace(settings, photometry=PhotometrySettings(scale=settings.map_scale))
+    return settings
+
+
 def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         check_output_dir(args.out, "output folder")
 
     from adaproj_edge.app.replay import ReplayOptions, replay_session
-    from adaproj_edge.app.settings import AppSettings
     from adaproj_edge.geometry.calibration import Calibration
 
-    settings = replace(AppSettings(), caching=not args.no_cache, warm_start=not args.no_warm_start)
+    settings = replay_settings(args)
     cal = Calibration.load(args.calibration) if args.calibration else None
     options = ReplayOptions(
         settings,

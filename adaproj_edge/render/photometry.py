@@ -306,7 +306,8 @@ def gain_from_irradiance(
     gain[lit] = np.minimum(np.exp(target[lit] - le[lit]), 1.0).astype(np.float32)
     after = target[judged]
     mean_ratio = total_of(after) / total_before
-    grad = _max_log_gradient(np.where(judged, target, np.nan)) / deg_per_px
+    # the change of what the target sets (the dimmest few keep their own, as before)
+    grad = _max_log_gradient(np.where(np.isfinite(bounded), target, np.nan)) / deg_per_px
     said = "; ".join(reasons) if reasons else None
     return gain, (before, _ratio(after), mean_ratio, math.expm1(grad), said)
 

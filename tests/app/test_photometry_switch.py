@@ -100,3 +100,17 @@ def test_the_output_applies_the_gain() -> None:
     assert np.array_equal(screen.frames[0], render_frame(image, maps))
     assert np.all(shown <= plain) and np.any(shown < plain)
     assert len(t.times.samples["gain_apply"]) == 1
+
+
+def test_the_replay_switch() -> None:
+    """``adaproj replay --compensate`` runs with the gain at the display maps' scale;
+    without it (or with ``--no-compensate``) the replay is as before."""
+    from adaproj_edge.cli import build_parser
+    from adaproj_edge.commands.replay import replay_settings
+
+    parser = build_parser()
+    default = replay_settings(parser.parse_args(["replay"]))
+    assert default == AppSettings() and default.photometry is None
+    assert replay_settings(parser.parse_args(["replay", "--no-compensate"])) == default
+    on = replay_settings(parser.parse_args(["replay", "--compensate", "--no-cache"]))
+    assert on.photometry == PhotometrySettings(scale=on.map_scale) and not on.caching
