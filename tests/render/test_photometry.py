@@ -168,3 +168,22 @@ def test_pixel_gain_follows_the_projector_response() -> None:
 def test_bad_settings_are_refused(bad: dict[str, float]) -> None:
     with pytest.raises(InputError, match="photometry"):
         PhotometrySettings(**bad)  # type: ignore[arg-type]
+
+
+def test_depth_noise_is_not_taken_for_light(caplog: pytest.LogCaptureFixture) -> None:
+    """A dense surface whose depth is the raw stereo staircase (OAK-D: steps of
+    z^2 / (f B 8)) plus matcher noise: its normals follow the noise, and a gain made from
+    them would print the noise on the picture; it is refused with the reason. The same
+    surface smooth is compensated."""
+    clean = simulate_surface("sphere-concave", SMALL, step=4)
+    pts = clean.points.astype(np.float64)
+    z = pts[..., 2]
+    dz = z**2 / (440.0 * 0.075) / 8
+    noisy_z = np.round(z / dz) * dz + np.random.default_rng(0).normal(0.0, 0.002, z.shape)
+    noisy = Surface((pts * (noisy_z / z)[..., None]).astype(np.float32), SMALL)
+    with caplog.at_level(logging.INFO, logger="adaproj_edge.render.photometry"):
+        gm = gain_map(noisy)
+    assert gm.reason is not None and "depth noise" in gm.reason
+    assert np.all(gm.light == 1.0)
+    assert any("depth noise" in r.getMessage() for r in caplog.records)
+    assert gain_map(clean).reason is None
