@@ -77,9 +77,9 @@ def simulate(
     compensate: bool = False,
 ) -> tuple[NDArray[np.uint8], Projection, Projection]:
     """The picture input | standard | corrected, titled with the surface's ``name`` and
-    where the viewer stands, and the two projections. With ``compensate`` the corrected
-    frame carries the brightness gain (:mod:`adaproj_edge.render.photometry`) and both
-    projections are shown as bright as the projector's light makes them."""
+    where the viewer stands, and the two projections. With ``compensate`` every
+    projection is shown as bright as the projector's light makes it, and the corrected
+    frame with the brightness gain (:mod:`adaproj_edge.render.photometry`) is added."""
     import numpy as np
 
     from adaproj_edge.render.photometry import apply_gain, gain_map
@@ -92,17 +92,15 @@ def simulate(
     corrected = project(surface, image, cmap, settings)
     viewer = viewer_for(surface, eye)
     frames = [plain.frame, corrected.frame]
-    label = f"adaproj ({settings.mode})"
+    labels = ["input", "standard projector", f"adaproj ({settings.mode})"]
     note = "grey: surface left dark"
     if compensate:
         gain = gain_map(surface, picture=np.isfinite(corrected.map_xy[..., 0]))
-        frames = [lit_frame(surface, plain.frame), lit_frame(surface, apply_gain(frames[1], gain))]
-        label += ", light evened out"
+        frames = [*frames, apply_gain(corrected.frame, gain)]
+        frames = [lit_frame(surface, f) for f in frames]
+        labels.append("adaproj, light evened out")
         note += "; brightness as the projector's light falls on the surface"
-    picture = row(
-        [image, *(view(surface, f, viewer) for f in frames)],
-        ["input", "standard projector", label],
-    )
+    picture = row([image, *(view(surface, f, viewer) for f in frames)], labels)
     x, y, z = eye
     title = (
         f"{name}, as a viewer at x {x:+.2f}, y {y:+.2f}, z {z:+.2f} m from the projector "

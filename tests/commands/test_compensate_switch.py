@@ -65,4 +65,4 @@ def test_simulate_with_compensate_writes_the_picture(tmp_path: Path) -> None:
         main([*argv, "--image", str(tmp_path / "img.png"), "--compensate", "--out", str(out)]) == 0
     )
     pic = cv2.imread(str(out))
-    assert pic.shape[1] > 3 * pic.shape[0]  # input | standard | corrected
+    assert pic.shape[1] > 4 * pic.shape[0]  # input | standard | corrected | compensated
