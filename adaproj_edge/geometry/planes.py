@@ -15,10 +15,13 @@ squares (twice), and its largest 4-connected set of inliers is accepted when it
 covers ``min_fraction`` of the nodes and its RMS residual is below ``max_rms_rel`` of
 the median depth (stereo noise grows with depth). Given the sensor's noise model
 (:class:`~adaproj_edge.geometry.depth.sensor.SensorModel`) the tolerance and the RMS
-also allow, per node, a part of its depth step there, so the staircase a stereo
-camera makes of a wall (24 mm steps at 2.5 m for an OAK-D) is snapped flat rather than
-left as waves. Curved surfaces (a column, a
-dome, a bowl) never meet that on a large piece and are left as they are.
+also allow, per node, a part of its depth step there and of the sensor's slowly
+varying error (the bands and bowls a real sensor makes of a flat wall, a few cm at
+3 m), so the staircase a stereo camera makes of a wall (24 mm steps at 2.5 m for an
+OAK-D) is snapped flat rather than left as waves; a piece that bends away from its
+plane by no more than that slow error is planar whatever its bend ratio. Curved
+surfaces (a column, a dome, a bowl) never meet that on a large piece and are left as
+they are.
 
 Pure: arrays in, arrays out.
 """
@@ -51,6 +54,14 @@ class PlaneSettings:
     step_tolerance: float = 0.5
     step_rms: float = 0.3
     step_flat: float = 0.1  # a residual below this many steps bends with the staircase
+    # ... and the sensor's slowly varying error (its RMS over a plane, ``bias_m``): a
+    # node within this many of it (beyond its steps) is on the plane (the peaks of a
+    # real sensor's warp are about 2.5 times its RMS), a piece may add this many of it
+    # to its RMS, and a piece whose bend (the part of its residual a quadric explains)
+    # is within this many of it is planar whatever its bend ratio
+    bias_tolerance: float = 2.5
+    bias_rms: float = 1.0
+    bias_bend: float = 1.0
     window: int = 2  # candidate planes from (2 w + 1)^2 node windows ...
     stride: int = 2  # ... centred on every stride-th node
 
@@ -116,6 +127,29 @@ def curvature_ratio(points: FloatArray, normal: FloatArray, offset: float) -> fl
     return float(np.sqrt(np.mean(r**2))) / max(rq, 1e-12)
 
 
+def node_tolerance(
+    s: PlaneSettings, sensor: SensorModel | None, z: FloatArray, z_median: float
+) -> float | FloatArray:
+    """How far (m) a node at depth ``z`` (NaN: unknown) may lie from its plane and be on
+    it: ``tolerance_rel`` of the median depth, or with a sensor model the part of its
+    depth step and of the sensor's slowly varying error there, if more."""
+    tol = s.tolerance_rel * z_median
+    if sensor is None:
+        return tol
+    zn = np.where(np.isfinite(z), z, z_median)
+    return np.maximum(
+        tol, s.step_tolerance * sensor.step_m(zn) + s.bias_tolerance * sensor.bias_m(zn)
+    )
+
+
+def bend_m(points: FloatArray, normal: FloatArray, offset: float, bend: float) -> float:
+    """RMS (m) of the part of ``points``' distances to the plane that a quadratic height
+    field explains (see :func:`curvature_ratio`, whose value ``bend`` is): how far the
+    piece bends away from its plane."""
+    rms = float(np.sqrt(np.mean((points @ normal - offset) ** 2)))
+    return rms * float(np.sqrt(max(1.0 - 1.0 / max(bend, 1.0) ** 2, 0.0)))
+
+
 def find_planes(
     surface: Surface, settings: PlaneSettings | None = None, sensor: SensorModel | None = None
 ) -> list[Plane]:
@@ -128,14 +162,7 @@ def find_planes(
     if n_valid == 0:
         return []
     z = float(np.median(pts[valid][:, 2]))
-    tol: float | FloatArray = s.tolerance_rel * z
-    max_rms = s.max_rms_rel * z
-    flat_rms = 0.0  # a piece this close to its plane is flat whatever its bend
-    if sensor is not None:
-        flat_rms = s.step_flat * float(sensor.step_m(z))
-        zn = np.where(valid, pts[..., 2], z)
-        tol = np.maximum(tol, s.step_tolerance * sensor.step_m(zn))
-        max_rms = max(max_rms, s.step_rms * float(sensor.step_m(z)))
+    tol = node_tolerance(s, sensor, pts[..., 2], z)
     free = valid.copy()
     cand = _candidates(pts, valid, s)
     flat = pts.reshape(-1, 3)
@@ -168,7 +195,16 @@ def find_planes(
         free &= ~piece
         rms = float(np.sqrt(np.mean((pts[piece] @ n - d) ** 2)))
         bend = curvature_ratio(pts[piece], n, d)
-        planar = rms <= flat_rms or bend <= s.max_bend
+        max_rms, flat_rms, bias_bend = s.max_rms_rel * z, 0.0, 0.0
+        if sensor is not None:  # the piece's own depth sets the sensor's error
+            zp = float(np.median(pts[piece][:, 2]))
+            step, bias = float(sensor.step_m(zp)), float(sensor.bias_m(zp))
+            max_rms = max(max_rms, s.step_rms * step + s.bias_rms * bias)
+            flat_rms = s.step_flat * step  # this close to its plane: flat whatever its bend
+            bias_bend = s.bias_bend * bias  # bending no more than the sensor's warp
+        planar = (
+            rms <= flat_rms or bend <= s.max_bend or bend_m(pts[piece], n, d, bend) <= bias_bend
+        )
         if piece.sum() >= s.min_fraction * n_valid and rms <= max_rms and planar:
             planes.append(Plane(n, d, piece, rms, bend))
     return planes
@@ -218,10 +254,7 @@ def snap_planes(
     if not planes:
         return surface, planes
     z_med = float(np.nanmedian(surface.points[..., 2]))
-    tol: float | FloatArray = s.tolerance_rel * z_med
-    if sensor is not None:
-        zn = np.nan_to_num(surface.points[..., 2].astype(np.float64), nan=z_med)
-        tol = np.maximum(tol, s.step_tolerance * sensor.step_m(zn))
+    tol = node_tolerance(s, sensor, surface.points[..., 2].astype(np.float64), z_med)
     labels = plane_labels(surface, planes, tol)
     rows, cols = surface.shape
     p = surface.projector

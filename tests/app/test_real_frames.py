@@ -44,8 +44,12 @@ def _id(frame: RealFrame, region: Region) -> str:
 
 # Today's misses, with today's figure (`tools/bench_real.py --no-render`): every region
 # gets a picture, without a WarpError, and `adaproj warp` agrees; what is left is the
-# upright of content that lands off the aimed wall, the flatness of real planes (the
-# sensor's steps and the lattice's smoothing) and content across some depth jumps.
+# upright of content that lands off the aimed wall, distortion on real planes and
+# content across some depth jumps. The planes themselves are snapped (the sensor's
+# steps and slow error allowed for); what their figures keep is the distortion the warp
+# spreads onto them from the rest of the footprint (a region's plane alone, exact,
+# reads 0.000) and, seen grazing, the plane fit's own spread (two robust fits to halves
+# of one box's raw points differ by 0.5-3 deg: 0.02-0.16 of angle at 60-73 deg).
 XFAIL: dict[str, dict[str, str]] = {
     "test_upright": {
         "nyu_basement/wardrobe": "37.5 deg on a wall",
@@ -55,11 +59,11 @@ XFAIL: dict[str, dict[str, str]] = {
         "tum_desk/partition-shelf": "2.5 deg on a wall",
     },
     "test_planar_distortion": {
-        "nyu_basement/floor": "angle 0.067, size 0.065",
-        "sun3d_corridor/floor": "angle 0.499, size 0.029",
-        "sun3d_corridor/wall": "angle 0.280, size 0.017",
-        "tum_desk/partition": "angle 0.044, size 0.147",
-        "tum_desk/floor": "angle 0.016, size 0.046",
+        "nyu_basement/floor": "angle 0.042, size 0.109",
+        "sun3d_corridor/floor": "angle 0.389, size 0.022",
+        "sun3d_corridor/wall": "angle 0.356, size 0.019",
+        "tum_desk/partition": "angle 0.020, size 0.144",
+        "tum_desk/floor": "angle 0.018, size 0.031",
     },
     "test_off_depth_jumps": {
         "nyu_basement/wardrobe": "5.6 % bridging, 4.3 % on nothing",

@@ -40,12 +40,19 @@ def plane_depth(rays: FloatArray, normal: FloatArray, point: FloatArray) -> Floa
     return np.where(z > 0, z, np.nan)
 
 
-def quantised(z: FloatArray, bits: int = 3, jitter_px: float = 0.0, seed: int = 0) -> FloatArray:
-    """Depth as the sensor reports it: disparity (with ``jitter_px`` of noise) rounded
-    to 1 / 2^bits px, in millimetres; NaN stays NaN. Without jitter the steps are as
-    clean as a real OAK-D's after its median filter."""
+def quantised(
+    z: FloatArray,
+    bits: int = 3,
+    jitter_px: float = 0.0,
+    seed: int = 0,
+    bias_px: FloatArray | float = 0.0,
+) -> FloatArray:
+    """Depth as the sensor reports it: disparity (with ``jitter_px`` of noise and a
+    slowly varying error ``bias_px`` added) rounded to 1 / 2^bits px, in millimetres;
+    NaN stays NaN. Without jitter the steps are as clean as a real OAK-D's after its
+    median filter."""
     rng = np.random.default_rng(seed)
-    d = FB / z + rng.normal(scale=jitter_px, size=z.shape)
+    d = FB / z + bias_px + rng.normal(scale=jitter_px, size=z.shape)
     q = np.round(d * 2**bits) / 2**bits
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.round(FB / q * 1000.0) / 1000.0
@@ -122,6 +129,79 @@ def test_a_quantised_wall_comes_out_planar(z0: float, tilt_deg: float) -> None:
     got = snapped.points.astype(np.float64)
     assert np.isfinite(got[..., 2]).mean() > 0.6
     assert np.mean(angle_distortion(got, truth)) <= 0.02
+
+
+# the slowly varying disparity error of the real Kinect-class frames (tests/fixtures/real):
+# 0.02-0.045 px RMS over a floor or a wall, averaged over 16 x 16 pixel blocks
+WARP_PX = 0.04
+
+
+def warp_px(rms_px: float, seed: int) -> FloatArray:
+    """A slowly varying disparity error (h, w) of RMS ``rms_px``: four plane waves of
+    200-400 px periods in random directions and phases, as real structured-light and
+    stereo sensors warp a flat wall (bands and bowls a few hundred pixels across)."""
+    rng = np.random.default_rng(seed)
+    v, u = np.mgrid[0 : D.height, 0 : D.width].astype(np.float64)
+    b = np.zeros_like(u)
+    for _ in range(4):
+        period, angle, phase = rng.uniform(200, 400), rng.uniform(0, np.pi), rng.uniform(0, 7)
+        b += np.cos(2 * np.pi * (u * np.cos(angle) + v * np.sin(angle)) / period + phase)
+    b -= b.mean()
+    return rms_px * b / np.sqrt(np.mean(b * b))
+
+
+@pytest.mark.parametrize("z0, tilt_deg", [(2.0, 30.0), (3.0, 60.0)])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_wall_warped_by_the_sensor_s_slow_error_is_snapped_onto_its_plane(
+    z0: float, tilt_deg: float, seed: int
+) -> None:
+    """A wall whose disparity carries the slow error of a real sensor (the RMS the
+    Kinect-class frames of ``tests/fixtures/real`` show) is one plane: snapped whole,
+    it shows the content undistorted on the true wall. Distortion against the wall's
+    ray-cast truth; the lattice that follows the error shows 0.01-0.02."""
+    t = np.radians(tilt_deg)
+    normal, point = np.array([np.sin(t), 0.0, -np.cos(t)]), np.array([0.0, 0.0, z0])
+    z = quantised(plane_depth(depth_rays(), normal, point), bias_px=warp_px(WARP_PX, seed))
+    estimator = SurfaceEstimator(CAL)
+    est = estimator.estimate(z, (21, 21))
+    snapped, planes = snap_planes(est.surface, sensor=estimator.sensor)
+    assert len(planes) == 1
+    assert planes[0].nodes.mean() > 0.85
+    got = snapped.points.astype(np.float64)
+    truth = lattice_truth(normal, point, snapped.shape)
+    assert np.isfinite(got[..., 2]).mean() > 0.6
+    assert np.mean(angle_distortion(got, truth)) <= 0.015
+
+
+def bump_depth(z0: float, height: float, sigma: float) -> FloatArray:
+    """Depth (h, w) of a frontal wall ``z0`` away with a round bump ``height`` towards the
+    camera (Gaussian, ``sigma`` metres wide) under the projector's axis."""
+    rays = depth_rays()
+    x, y = rays[..., 0] * z0, rays[..., 1] * z0  # (to first order: the bump is shallow)
+    cx, cy = -CAL.T_P_D[0, 3], -CAL.T_P_D[1, 3]  # the projector's centre in D
+    return z0 - height * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * sigma**2))
+
+
+def test_a_shallow_bump_on_a_wall_is_not_snapped_flat() -> None:
+    """A bump 1 cm high (a Gaussian 5 cm wide, sigma) on a wall 1.2 m away, seen by the
+    quantised sensor (steps of 5 mm there): the surface shows two thirds of it, and
+    the snapping, which now allows a node the sensor's slow error on top of its step,
+    leaves the bump out of the wall's plane (twice that allowance would flatten it)."""
+    z0, height = 1.2, 0.01
+    z = quantised(bump_depth(z0, height, 0.05))
+    estimator = SurfaceEstimator(CAL)
+    est = estimator.estimate(z, (21, 21))
+    snapped, planes = snap_planes(est.surface, sensor=estimator.sensor)
+    assert len(planes) == 1  # the wall around it
+    # the bump's height along the projector's axis (the lattice's centre) against the
+    # wall's: the surface's depth there, before and after the snapping
+    rows, cols = snapped.shape
+    wall = z0 + CAL.T_P_D[2, 3]
+    before = wall - float(est.surface.points[10, 10, 2])
+    after = wall - float(snapped.points[rows // 2, cols // 2, 2])
+    assert before > 0.5 * height  # the estimate sees it
+    assert after > 0.9 * before  # and the snapping keeps it
+    assert not planes[0].nodes[9:12, 9:12].any()
 
 
 # --- part 2: a box in front of a wall is cut at its silhouette ----------------------------
