@@ -64,6 +64,7 @@ from adaproj_edge.session.records import SerialTraffic  # noqa: E402
 from adaproj_edge.session.simulator import (  # noqa: E402
     HAND_KEY,
     KEY_CODE,
+    SENSOR_KEY,
     T0_NS,
     Scene,
     SimulationSettings,
@@ -120,6 +121,7 @@ def make_fault_session() -> None:
         "surface": json.dumps(scene.spec),
         "seed": str(settings.seed),
         "seconds": str(settings.seconds),
+        SENSOR_KEY: settings.stereo.name,
         "depth_faults": json.dumps(DEPTH_FAULTS),
         FAULTS_KEY: json.dumps(IMU_ERRORS),
     }
@@ -259,6 +261,7 @@ def make_push_session() -> None:
         "surface": json.dumps(scene.spec),
         "seed": str(settings.seed),
         "seconds": str(settings.seconds),
+        SENSOR_KEY: settings.stereo.name,
         "push": json.dumps(push),
     }
     _write_session(PUSH_SESSION, cal, meta, scene.spec, [*recs, *traffic])
@@ -359,6 +362,7 @@ def make_push_clip_session() -> None:
         "surface": json.dumps(scene.spec),
         "seed": str(settings.seed),
         "seconds": str(settings.seconds),
+        SENSOR_KEY: settings.stereo.name,
         "push": json.dumps(push),
         HAND_KEY: json.dumps(hand_metadata(hand)),
     }
