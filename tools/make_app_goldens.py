@@ -27,8 +27,13 @@ activated: the device plays it, looped; a tap-hold pauses it (``CLIP_PAUSE_S``) 
 another resumes it (``CLIP_RESUME_S``). Metadata key ``push``: both files' names,
 sizes and SHA-256, and the clip's size, rate and frame count.
 
-Everything is seeded, so the same command gives the same files. The tests never
-write these.
+The sessions' depth frames are drawn from the OAK-D's noise model (the simulator's
+default). Everything is seeded, so the same command gives the same files. The tests
+never write these. After a change to the depth or warp pipeline, every replay golden
+(these and the session fixtures' tracking digests) is rewritten by the two commands
+
+    .venv/bin/python tools/make_fixtures.py --golden-only
+    .venv/bin/python tools/make_app_goldens.py
 """
 
 from __future__ import annotations
