@@ -154,3 +154,21 @@ def visible_fraction(map_xy: NDArray[np.float32], content_size: tuple[int, int])
         q = np.rint(pts * 16).astype(np.int32)
         cv2.fillPoly(canvas, list(q), 1, lineType=cv2.LINE_8, shift=4)
     return float(canvas.mean())
+
+
+# Lines the distortion of a warp made from measured depth is held to, beside that of the
+# warp made from the true surface ("within twice the truth, plus what the depth costs").
+NONE = 0.003
+"""A distortion this small counts as none: where the true warp has (almost) none, as on
+a plane, "twice the true distortion" would ask for exactly zero (smooth depth noise)."""
+
+SENSOR_STEPS = 0.02
+"""What a real sensor's depth steps (disparity in 1/8 px, z^2 growth) may add: the
+displayed angle distortion and size inconsistency allowed on a planar region, where the
+truth has none (the target for real depth frames)."""
+
+
+def allowance(sensor: str) -> float:
+    """What depth from the noise model ``sensor`` (a simulated session's metadata
+    ``sensor``: ``smooth``, or a real sensor's name) may add to twice the truth."""
+    return NONE if sensor == "smooth" else SENSOR_STEPS

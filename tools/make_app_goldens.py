@@ -27,8 +27,13 @@ activated: the device plays it, looped; a tap-hold pauses it (``CLIP_PAUSE_S``) 
 another resumes it (``CLIP_RESUME_S``). Metadata key ``push``: both files' names,
 sizes and SHA-256, and the clip's size, rate and frame count.
 
-Everything is seeded, so the same command gives the same files. The tests never
-write these.
+The sessions' depth frames are drawn from the OAK-D's noise model (the simulator's
+default). Everything is seeded, so the same command gives the same files. The tests
+never write these. After a change to the depth or warp pipeline, every replay golden
+(these and the session fixtures' tracking digests) is rewritten by the two commands
+
+    .venv/bin/python tools/make_fixtures.py --golden-only
+    .venv/bin/python tools/make_app_goldens.py
 """
 
 from __future__ import annotations
@@ -64,6 +69,7 @@ from adaproj_edge.session.records import SerialTraffic  # noqa: E402
 from adaproj_edge.session.simulator import (  # noqa: E402
     HAND_KEY,
     KEY_CODE,
+    SENSOR_KEY,
     T0_NS,
     Scene,
     SimulationSettings,
@@ -120,6 +126,7 @@ def make_fault_session() -> None:
         "surface": json.dumps(scene.spec),
         "seed": str(settings.seed),
         "seconds": str(settings.seconds),
+        SENSOR_KEY: settings.stereo.name,
         "depth_faults": json.dumps(DEPTH_FAULTS),
         FAULTS_KEY: json.dumps(IMU_ERRORS),
     }
@@ -259,6 +266,7 @@ def make_push_session() -> None:
         "surface": json.dumps(scene.spec),
         "seed": str(settings.seed),
         "seconds": str(settings.seconds),
+        SENSOR_KEY: settings.stereo.name,
         "push": json.dumps(push),
     }
     _write_session(PUSH_SESSION, cal, meta, scene.spec, [*recs, *traffic])
@@ -359,6 +367,7 @@ def make_push_clip_session() -> None:
         "surface": json.dumps(scene.spec),
         "seed": str(settings.seed),
         "seconds": str(settings.seconds),
+        SENSOR_KEY: settings.stereo.name,
         "push": json.dumps(push),
         HAND_KEY: json.dumps(hand_metadata(hand)),
     }

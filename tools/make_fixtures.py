@@ -1,9 +1,13 @@
 #!/usr/bin/env python3
-"""Regenerate the committed session fixtures (tests/fixtures/sessions/).
+"""Regenerate the committed session fixtures (tests/fixtures/sessions/) and the
+built-in recording ``adaproj replay`` plays (``adaproj_edge/data/cylinder.mcap``, a
+copy of the cylinder fixture).
 
     .venv/bin/python tools/make_fixtures.py            # sessions
     .venv/bin/python tools/make_fixtures.py --golden   # and the golden replay outputs
 
+The depth frames are drawn from the OAK-D's noise model (the simulator's default:
+depth steps, flying pixels, holes, occlusion bands), as a real sensor gives them.
 Every fixture has a fixed seed, so running this again gives the same files.
 Regenerating is a deliberate act: the tests never write them.
 """
@@ -12,10 +16,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 from pathlib import Path
 
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.mesh_surface import ply_bytes, uv_sphere
+from adaproj_edge.resources import default_session
 from adaproj_edge.session.digest import tracking_digest
 from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session
 from adaproj_edge.threads import apply_thread_policy
@@ -32,6 +38,7 @@ FIXTURES = {
     "sphere": ("sphere-convex", 13),
     "mesh-sphere": ("mesh-sphere.ply", 14),
 }
+BUILT_IN = "cylinder"  # the fixture adaproj replay plays by default
 GOLDEN = OUT / "golden.json"
 GRID = (21, 21)
 
@@ -48,6 +55,11 @@ def make_sessions() -> None:
         )
         size = (OUT / f"{name}.mcap").stat().st_size
         print(f"{name}.mcap: {n} records, {size / 1e6:.2f} MB")
+    built_in = default_session()
+    tmp = built_in.with_name(built_in.name + ".part")
+    shutil.copyfile(OUT / f"{BUILT_IN}.mcap", tmp)
+    tmp.replace(built_in)
+    print(f"{built_in.relative_to(ROOT)}: a copy of {BUILT_IN}.mcap")
 
 
 def make_golden() -> None:

@@ -52,7 +52,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument(
         "--sensor",
         default="oak-d",
-        choices=["oak-d", "kinect", "smooth"],
+        choices=["oak-d", "kinect", "smooth"],  # session.stereo.NOISE_MODELS (no numpy here)
         help="the depth sensor's noise model (default oak-d: depth steps of z^2 / (f B 8), "
         "flying pixels, holes on untextured patches, occlusion bands beside silhouettes; "
         "smooth: smooth noise only, no visible steps)",
@@ -68,7 +68,6 @@ def run(args: argparse.Namespace) -> int:
     check_output_file(args.out, "session file")
 
     from adaproj_edge.geometry.calibration import Calibration
-    from adaproj_edge.geometry.depth.sensor import SensorModel
     from adaproj_edge.session.hand import HandMotion
     from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session
     from adaproj_edge.session.stereo import StereoNoise
@@ -77,11 +76,12 @@ def run(args: argparse.Namespace) -> int:
     hand = HandMotion(args.seconds, args.seed, roll_deg=args.roll)
     if args.tremor is not None:
         hand = replace(hand, tremor_deg=args.tremor)
-    stereo = StereoNoise()
-    if args.sensor != "smooth":
-        stereo = StereoNoise.of_sensor(SensorModel.of(cal.depth, args.sensor))
     settings = SimulationSettings(
-        seconds=args.seconds, depth_fps=args.depth_fps, seed=args.seed, motion=hand, stereo=stereo
+        seconds=args.seconds,
+        depth_fps=args.depth_fps,
+        seed=args.seed,
+        motion=hand,
+        stereo=StereoNoise.named(args.sensor),
     )
     n = simulate_session(Scene.load(args.surface), args.out, cal, settings)
     log.info("wrote %d records to %s", n, args.out)

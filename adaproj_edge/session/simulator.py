@@ -54,7 +54,7 @@ from adaproj_edge.session.clutter import CLUTTER
 from adaproj_edge.session.codec import Record
 from adaproj_edge.session.hand import GRAVITY_W, HandMotion
 from adaproj_edge.session.records import TruthPose
-from adaproj_edge.session.stereo import StereoNoise, stereo_depth
+from adaproj_edge.session.stereo import StereoNoise, default_noise, stereo_depth
 from adaproj_edge.session.writer import SessionWriter
 
 log = logging.getLogger(__name__)
@@ -76,6 +76,10 @@ def wall_floor_mesh(wall_z: float = 2.0, floor_y: float = 0.45) -> MeshSurface:
     )  # fmt: skip
     return MeshSurface(WALL_FLOOR, v, np.array([[0, 1, 2], [0, 2, 3], [3, 2, 5], [3, 5, 4]]))
 
+
+SENSOR_KEY = "sensor"
+"""Session metadata key of the depth noise model the frames were drawn from
+(:attr:`StereoNoise.name`: ``oak-d``, ``kinect`` or ``smooth``)."""
 
 HAND_KEY = "hand"
 """Session metadata key of the simulated hand's intent (JSON, :func:`hand_metadata`)."""
@@ -115,7 +119,10 @@ class ImuTiming:
 
 @dataclass(frozen=True)
 class SimulationSettings:
-    """What to simulate; ``presses`` are times (s) of button presses (None: two)."""
+    """What to simulate; ``presses`` are times (s) of button presses (None: two);
+    ``stereo``: the depth sensor's noise model (by default an OAK-D's: depth steps,
+    flying pixels, holes, occlusion bands; ``StereoNoise.named("smooth")`` for smooth
+    noise only)."""
 
     seconds: float = 3.0
     depth_fps: float = 15.0
@@ -124,7 +131,7 @@ class SimulationSettings:
     imu: Lsm6dsoxConfig = field(default_factory=Lsm6dsoxConfig)
     imu_noise: ImuNoise = field(default_factory=ImuNoise)
     imu_timing: ImuTiming = field(default_factory=ImuTiming)
-    stereo: StereoNoise = field(default_factory=StereoNoise)
+    stereo: StereoNoise = field(default_factory=default_noise)
     motion: HandMotion | None = None
 
     def hand(self) -> HandMotion:
@@ -323,6 +330,7 @@ def simulate_session(
         "seconds": str(settings.seconds),
         "depth_fps": str(settings.depth_fps),
         "imu_rate_hz": str(settings.imu.rate_hz),
+        SENSOR_KEY: settings.stereo.name,
         HAND_KEY: json.dumps(hand_metadata(settings.hand())),
     }
     tmp = Path(out).with_name(Path(out).name + ".part")

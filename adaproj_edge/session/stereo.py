@@ -32,13 +32,25 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray
+from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.calibration import DepthCameraModel
-from adaproj_edge.geometry.depth.sensor import SensorModel
+from adaproj_edge.geometry.depth.sensor import SENSORS, SensorKind, SensorModel
+
+SMOOTH = "smooth"
+"""The name of the smooth noise model (no visible steps, no edges' artefacts)."""
+
+DEFAULT_SENSOR = "oak-d"
+"""The sensor whose frames sessions are simulated with unless told otherwise."""
+
+NOISE_MODELS = (*SENSORS, SMOOTH)
+"""Every noise model by name: the real sensors' (:data:`SENSORS`), then the smooth one."""
 
 
 @dataclass(frozen=True)
 class StereoNoise:
-    """Parameters of the stereo error model (pixels of disparity unless stated)."""
+    """Parameters of the stereo error model (pixels of disparity unless stated); the
+    defaults are the smooth model, :meth:`named` gives a real sensor's; ``name`` says
+    which (recorded in a simulated session's metadata)."""
 
     white_px: float = 0.1
     correlated_px: float = 0.1
@@ -53,12 +65,14 @@ class StereoNoise:
     occlusion: bool = False
     flying: float = 0.0
     untextured: float = 0.0
+    name: str = SMOOTH
 
     @classmethod
-    def of_sensor(cls, sensor: SensorModel) -> StereoNoise:
+    def of_sensor(cls, sensor: SensorModel | SensorKind) -> StereoNoise:
         """A real sensor's frames: its step, most of its error smooth and below the step
         (a staircase on every wall), occlusion bands, flying pixels, untextured holes."""
         return cls(
+            name=sensor.name,
             white_px=0.02,
             correlated_px=0.04,
             correlation_px=12.0,
@@ -67,6 +81,22 @@ class StereoNoise:
             flying=0.3,
             untextured=0.03,
         )
+
+    @classmethod
+    def named(cls, name: str) -> StereoNoise:
+        """The frames of the sensor ``name`` (:data:`NOISE_MODELS`): a real sensor's
+        (:meth:`of_sensor`), or ``"smooth"``: smooth noise only, no visible steps."""
+        if name == SMOOTH:
+            return cls()
+        kind = SENSORS.get(name)
+        if kind is None:
+            raise InputError(f"unknown depth sensor {name!r}: one of {', '.join(NOISE_MODELS)}")
+        return cls.of_sensor(kind)
+
+
+def default_noise() -> StereoNoise:
+    """The noise model sessions are simulated with by default: :data:`DEFAULT_SENSOR`'s."""
+    return StereoNoise.named(DEFAULT_SENSOR)
 
 
 def normals_cos(points: FloatArray) -> FloatArray:

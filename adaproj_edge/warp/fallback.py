@@ -90,6 +90,23 @@ class Repaired:
     dropped: int
 
 
+@dataclass(frozen=True)
+class Solved:
+    """A content-free solve of the full grid's mesh, kept for a repair to start from.
+
+    Attributes
+    ----------
+    mesh : MeshGeometry
+        The mesh of the surface on the grid, nothing left out (not refined).
+    v_conformal, v : (n, 2) float arrays
+        Its conformal and content-free positions (folded, or a repair is not asked for).
+    """
+
+    mesh: MeshGeometry
+    v_conformal: FloatArray
+    v: FloatArray
+
+
 Conformal = Callable[[MeshGeometry], FloatArray]
 ContentFree = Callable[[MeshGeometry, FloatArray, float], tuple[FloatArray, FloatArray]]
 
@@ -101,10 +118,14 @@ def repair(
     conformal: Conformal,
     content_free: ContentFree,
     lam: float,
+    first: Solved | None = None,
 ) -> Repaired:
     """The content-free warp of ``surface`` on ``grid`` with the cells where it folds
     left out: every folded triangle's corners are dropped with all their triangles,
     the rest (its largest edge-connected piece) solved again, until nothing folds.
+
+    ``first``: the solve of the whole mesh already made (the chain's content-free step,
+    which folded); the repair starts from its folds instead of solving it again.
 
     Raises
     ------
@@ -112,12 +133,15 @@ def repair(
         It still folds after ``REPAIR_ROUNDS`` repairs, the repair would leave out
         more than ``REPAIR_MAX_DROP`` of the mesh, or a solve fails.
     """
-    mesh = MeshGeometry.build(surface, grid, cache)
+    mesh = first.mesh if first is not None else MeshGeometry.build(surface, grid, cache)
     total = mesh.tris.shape[0]
     drop = np.zeros(2 * grid.rows * grid.cols, dtype=bool)
-    for _ in range(REPAIR_ROUNDS + 1):
-        v_conf = conformal(mesh)
-        v, _ = content_free(mesh, v_conf, lam)
+    for k in range(REPAIR_ROUNDS + 1):
+        if k == 0 and first is not None:
+            v_conf, v = first.v_conformal, first.v
+        else:
+            v_conf = conformal(mesh)
+            v, _ = content_free(mesh, v_conf, lam)
         bad = ~(signed_areas(v, mesh.tris) > 0)
         if not bad.any():
             return Repaired(mesh, v_conf, v, int(drop.sum()))

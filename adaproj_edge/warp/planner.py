@@ -80,7 +80,15 @@ from adaproj_edge.warp.engine import (
     refine_as_paper,
     standard_warp,
 )
-from adaproj_edge.warp.fallback import Down, Step, chain, chain_of, keystone_surface, repair
+from adaproj_edge.warp.fallback import (
+    Down,
+    Solved,
+    Step,
+    chain,
+    chain_of,
+    keystone_surface,
+    repair,
+)
 from adaproj_edge.warp.guard import guard, guard_grid
 from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
 from adaproj_edge.warp.orientation import fold_count
@@ -295,17 +303,19 @@ class WarpPlanner:
         """Step 1, down the chain (:mod:`~adaproj_edge.warp.fallback`) when the surface
         as measured cannot carry it: repaired, then the dominant plane's keystone."""
         settings = replace(settings, grid=self.grid)
+        first: Solved | None = None  # the solve a repair starts from (not refined)
         try:
             mesh, extra = self._mesh(surface, settings)
             v_conf = self.backend.conformal(mesh)
             v, _ = self.backend.content_free(mesh, v_conf, settings.lam)
+            first = None if extra else Solved(mesh, v_conf, v)
             return self._start_of(surface, surface, mesh, extra, v_conf, v, content_size, settings)
         except WarpError as e:
             down: Down = [("content-free", str(e))]
         b = self.backend
         try:
             fixed = repair(
-                surface, self.grid, self.cache, b.conformal, b.content_free, settings.lam
+                surface, self.grid, self.cache, b.conformal, b.content_free, settings.lam, first
             )
             extra = {"repair_dropped": fixed.dropped}
             return self._start_of(

@@ -13,7 +13,10 @@ import pytest
 
 from adaproj_edge.app.replay import ReplayOptions, replay_session
 from adaproj_edge.cli import main
+from adaproj_edge.session.reader import read_session
+from adaproj_edge.session.simulator import SENSOR_KEY
 from tests.app.golden import GOLDEN, differences, golden_view, session_paths
+from tests.distortion import allowance
 
 # the clip session's goldens are checked in test_playback.py
 NAMES = sorted(n for n in session_paths() if n != "push-clip")
@@ -48,10 +51,13 @@ def _displayed_vs_truth(name: str) -> list[tuple[float, float]]:
 
 @pytest.mark.parametrize("name", SIMULATED)
 def test_displayed_distortion_is_within_twice_the_true_surface_warp(name: str) -> None:
+    """Plus what the session's depth may cost where the truth has none (a real sensor's
+    steps: ``tests.distortion.allowance``; the committed sessions have the OAK-D's)."""
     pairs = _displayed_vs_truth(name)
     assert pairs
+    sensor = read_session(session_paths()[name]).metadata["session"].get(SENSOR_KEY, "smooth")
     for shown, truth in pairs:
-        assert shown <= 2 * truth, (shown, truth)
+        assert shown <= 2 * truth + allowance(sensor), (shown, truth, sensor)
 
 
 def test_fault_session_keeps_the_last_frame_and_recovers_within_a_second() -> None:

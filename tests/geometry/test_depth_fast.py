@@ -452,6 +452,9 @@ def test_sessions_are_there() -> None:
         assert len(frames) >= 10 and frames[0].shape == (400, 640)
 
 
+# the recorded frames have the sensor's holes (untextured patches): the reference's
+# fill_holes warns when a node of a large one has no known neighbour (it is not filled)
+@pytest.mark.filterwarnings("ignore:Mean of empty slice:RuntimeWarning")
 @pytest.mark.parametrize("name", SESSIONS)
 def test_lattice_depths_match_the_reference_on_recorded_frames(name: str) -> None:
     calibration, frames = recorded(name)
@@ -472,6 +475,7 @@ def test_lattice_depths_match_the_reference_on_recorded_frames(name: str) -> Non
         assert max(ks) > 1  # the supersampled lattice is exercised
 
 
+@pytest.mark.filterwarnings("ignore:Mean of empty slice:RuntimeWarning")  # (as above)
 @pytest.mark.parametrize("name", SESSIONS)
 def test_estimate_surface_matches_the_reference(name: str) -> None:
     calibration, frames = recorded(name)

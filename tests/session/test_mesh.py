@@ -15,7 +15,6 @@ from adaproj_edge.geometry.calibration import Calibration, DepthCameraModel
 from adaproj_edge.geometry.mesh_surface import MeshSurface, load_mesh, ply_bytes, uv_sphere
 from adaproj_edge.geometry.rotations import rotation_of
 from adaproj_edge.hal.depth import DepthFrame
-from adaproj_edge.session.hand import HandMotion
 from adaproj_edge.session.reader import read_session
 from adaproj_edge.session.records import TruthPose
 from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate, true_surface
@@ -163,12 +162,10 @@ FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "sessions"
 def test_simulating_the_mesh_fixture_again_gives_its_depth_frames_exactly() -> None:
     """The caster gives the committed session's hits: same frames, bit for bit.
 
-    Settings as tools/make_fixtures.py made ``mesh-sphere.mcap`` (3 s, 5 fps, seed 14).
+    Settings as tools/make_fixtures.py made ``mesh-sphere.mcap`` (3 s, 5 fps, seed 14,
+    the default hand and the default depth noise: the OAK-D's).
     """
-    # the fixture's hand turns about the device's own centre (made before the hand's
-    # wrist lever came in): the same path asks for no lever
-    hand = HandMotion(3.0, 14, lever_m=0.0)
-    settings = SimulationSettings(seconds=3.0, depth_fps=5.0, seed=14, motion=hand)
+    settings = SimulationSettings(seconds=3.0, depth_fps=5.0, seed=14)
     recs = simulate(Scene.load(str(FIXTURES / "mesh-sphere.ply")), Calibration.default(), settings)
     new = [r.depth_mm for r in recs if isinstance(r, DepthFrame)]
     old = [f.depth_mm for f in read_session(FIXTURES / "mesh-sphere.mcap").depth]

@@ -39,14 +39,26 @@ def test_simulated_session_round_trips_exactly(tmp_path: Path) -> None:
     assert main(["simulate-session", "--surface", "corner", "--seconds", "1", "--depth-fps",
                  "3", "--seed", "4", "--out", str(out)]) == 0  # fmt: skip
     s = read_session(out)
-    # the OAK-D's noise model is on by default
+    # the OAK-D's noise model is on by default, in the command and in SimulationSettings
     oak_d = StereoNoise.of_sensor(SensorModel.of(CAL.depth, "oak-d"))
-    assert s.records == simulate(Scene.load("corner"), CAL, replace(SHORT, stereo=oak_d))
+    assert SHORT.stereo == oak_d
+    assert s.records == simulate(Scene.load("corner"), CAL, SHORT)
+    assert s.metadata["session"]["sensor"] == "oak-d"
     assert s.truth_surface_spec() == {"kind": "analytic", "name": "corner"}
     smooth = tmp_path / "smooth.mcap"
     assert main(["simulate-session", "--surface", "corner", "--seconds", "1", "--depth-fps",
                  "3", "--seed", "4", "--sensor", "smooth", "--out", str(smooth)]) == 0  # fmt: skip
-    assert read_session(smooth).records == simulate(Scene.load("corner"), CAL, SHORT)
+    smooth_noise = replace(SHORT, stereo=StereoNoise.named("smooth"))
+    assert read_session(smooth).records == simulate(Scene.load("corner"), CAL, smooth_noise)
+    assert read_session(smooth).metadata["session"]["sensor"] == "smooth"
+
+
+def test_a_noise_model_is_chosen_by_name() -> None:
+    assert StereoNoise.named("smooth") == StereoNoise()
+    kinect = StereoNoise.named("kinect")
+    assert kinect.name == "kinect" and kinect.occlusion and kinect.flying > 0
+    with pytest.raises(InputError, match="unknown depth sensor 'lidar'"):
+        StereoNoise.named("lidar")
 
 
 def test_cli_errors(tmp_path: Path) -> None:

@@ -10,6 +10,8 @@ similarity of them."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -17,11 +19,12 @@ from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.analytic import Plane, ray_cast
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.warp.engine import WarpSettings
-from adaproj_edge.warp.fallback import chain_of, keystone_surface
+from adaproj_edge.warp.engine import FAST, WarpSettings
+from adaproj_edge.warp.fallback import Solved, chain_of, keystone_surface, repair
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.orientation import fold_count
 from adaproj_edge.warp.planner import PlanSettings, WarpPlanner, compute_warp
+from adaproj_edge.warp.solve import solve_conformal, solve_content_free
 from adaproj_edge.warp.warpmap import Grid, Warp
 
 SIZE = (640, 400)
@@ -159,3 +162,31 @@ def test_speckle_alone_gives_no_warp_with_every_reason() -> None:
         compute_warp(_surface(pts), SIZE, None, WarpSettings())
     for step in ("content-free:", "repaired:", "keystone:"):
         assert step in str(e.value)
+
+
+def test_a_repair_starts_from_the_folded_solve_instead_of_solving_it_again() -> None:
+    """The chain's content-free step has solved the whole mesh when it finds the fold;
+    the repair starts from that solve (it solved it again: three content-free solves
+    where two do, on every frame that goes down the chain) and ends where a repair
+    from scratch ends (the same function on the same mesh: the same bits)."""
+    s = _flying_border_pixel()
+    solves: list[int] = []
+
+    def content_free(
+        mesh: MeshGeometry, v_conf: np.ndarray, lam: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        solves.append(mesh.n)
+        return solve_content_free(mesh, v_conf, lam)
+
+    planner = WarpPlanner(P, GRID, backend=replace(FAST, content_free=content_free))
+    start = planner.content_free(s, SIZE, WarpSettings(up=UP))
+    assert chain_of(start.warp)[0] == "repaired" and fold_count(start.warp) == 0
+    assert len(solves) == 2  # the whole mesh (it folds), then the mesh without the notch
+    lam = WarpSettings().lam
+    mesh = MeshGeometry.build(s, GRID)
+    v_conf = solve_conformal(mesh)
+    first = Solved(mesh, v_conf, solve_content_free(mesh, v_conf, lam)[0])
+    again = repair(s, GRID, None, solve_conformal, solve_content_free, lam)
+    resumed = repair(s, GRID, None, solve_conformal, solve_content_free, lam, first)
+    assert resumed.dropped == again.dropped > 0
+    assert np.array_equal(resumed.v, again.v)
