@@ -220,7 +220,7 @@ def unfold_reference(
                         best, borrowed[v] = off, vertex_n[w]
     vertex_n = borrowed
     out = {}
-    if not rough:
+    if not slight:
         return out
     # the triangles whose corners' planes differ: never a side's smooth neighbours
     differ = set()
