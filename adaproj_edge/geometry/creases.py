@@ -235,9 +235,11 @@ def unfold_measured(
     # explained about as badly by its corners' planes as by its chord)
     chord = np.max(np.where(np.isfinite(dist[:, cand]), dist[:, cand], 0.0), axis=0)
     # (a triangle with a sliver across the crease is nearly flat: its two planes must
-    # explain it as well as a flat one's plane does, and it is never a curved crease)
+    # explain it as well as a flat one's plane does - within SLIGHT: the corners' planes
+    # come from flat triangles, each up to SLIGHT off its own - and it is never a
+    # curved crease)
     rough_c = rough[cand]
-    straight = worst <= FIT * np.where(rough_c, ROUGH, SLIGHT) * size[cand]
+    straight = worst <= np.where(rough_c, FIT * ROUGH, SLIGHT) * size[cand]
     # a straight crease with a curved side (a wall meeting a cone along a ruling): its
     # corners' planes miss the crease; each side's curve across it finds the planes
     curved_crease = rough_c & (worst <= CURVED_FIT * chord)

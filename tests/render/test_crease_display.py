@@ -9,8 +9,8 @@ neighbour triangle's place, on the other wall's plane.
 Ground truth: the independent scorer (``tests/distortion.py``: the rendered per-pixel
 map against rays cast at the analytic surface, every 4 px, small triangles across the
 crease left out). The corners are 60-150 deg, concave and convex, seen straight, from
-the side and from below, with vertical and horizontal creases placed on a grid line,
-a hair and half a pixel from one.
+the side and from below, with vertical, horizontal and slanted creases placed on a grid
+line, a hair, half a pixel and a pixel from one.
 """
 
 from __future__ import annotations
@@ -73,6 +73,10 @@ CASES = [
     pytest.param(75.0, True, -0.3, 20.0, 0.0, False, id="150-concave-side"),
     pytest.param(30.0, False, 0.05, -15.0, 0.0, False, id="60-convex-side"),
     pytest.param(60.0, True, 0.5, 0.0, 10.0, True, id="120-horizontal-below"),
+    # a slanted crease passing a grid vertex 1 px away: two slivers whose corners'
+    # planes (from flat triangles, each up to SLIGHT off) explained them to 2.5e-4 of
+    # their size, just short of the sliver's old bound (a band 130 px long, max 0.13)
+    pytest.param(65.66979, False, 1.0, 11.21105, -8.54074, True, id="132-convex-slanted"),
 ]
 
 
