@@ -10,11 +10,15 @@ unfolded shapes, and the renderer unfolds each pixel's surface point the same wa
 both walls of a corner are exact up to the crease itself.
 
 A crease that runs a hair past a grid vertex clips a sliver off the triangles there:
-they lie within ``ROUGH`` of their plane, yet that plane is tilted. Where some triangle
-is rough, triangles farther than ``SLIGHT`` from their plane are looked at too (as
-straight creases only: their two planes must explain them as a flat triangle's plane
-does), and a vertex takes its plane from its flat triangles where it has any, so a
-sliver's tilt does not spoil its neighbours' unfolding.
+they lie within ``ROUGH`` of their plane, yet that plane is tilted. Triangles farther
+than ``SLIGHT`` from their plane are looked at too (as straight creases only: their two
+planes must explain them as a flat triangle's plane does), also where no triangle is
+rough (a crease half a pixel past a grid line clips only slivers: left folded into one
+plane, the display showed a kink along it), and a vertex takes its plane from its flat
+triangles where it has any, so a sliver's tilt does not spoil its neighbours'
+unfolding. A crease that runs along a grid line leaves flat triangles on either side
+whose planes differ: :attr:`Unfolding.flat` says which triangles are flat, so the
+display does not blend across such an edge (:mod:`adaproj_edge.render.seams`).
 
 A straight crease may have a curved side (a wall meeting a cone along a ruling): its
 corners' planes are tangent to the cone a cell away, so the line they meet along is off
@@ -74,6 +78,10 @@ class Unfolding:
         crease, the nearer plane's side).
     ruled : (T,) bool, unfolded about a straight crease between curved sides (the
         planes are the sides' patches' tangent planes there, not the corners').
+    flat : (T,) bool, the surface at its probes lies within ``SLIGHT`` of its size
+        from its (chord) plane: the triangle is a piece of one plane. Two flat
+        triangles whose planes differ by more than a crease's angle meet along a crease
+        that runs along their common edge.
     """
 
     points: FloatArray
@@ -86,6 +94,7 @@ class Unfolding:
     origin: FloatArray
     softness: FloatArray
     ruled: NDArray[np.bool_]
+    flat: NDArray[np.bool_]
 
     def unfold_points(self, t: IntArray, X: FloatArray) -> FloatArray:
         """Unfold surface points ``X`` (..., 3) lying in triangles ``t`` (...).
@@ -168,12 +177,13 @@ def unfold_measured(
     rough = off > ROUGH * size
     # a crease may run just past a corner: the triangle is then nearly flat, but its
     # chord plane is tilted by the sliver across the crease (up to ROUGH): it is a
-    # candidate too, and it does not lend its tilted plane to its corners
-    # (without a rough triangle there is no crease to look for: a smooth surface costs
-    # no more than that look)
+    # candidate too, and it does not lend its tilted plane to its corners (a crease
+    # half a pixel past a grid line leaves no triangle rough, only slivers; a surface
+    # flat in every triangle costs no more than this look)
     slight = off > SLIGHT * size
-    if not np.any(rough):
-        return _nothing_folded(tri_pts)
+    flat = ~slight
+    if not np.any(slight):
+        return _nothing_folded(tri_pts, flat)
     # the plane of each vertex: area-weighted normal of its flat triangles, or where it
     # has none (a curved wall) of its smooth ones
     seen_t = np.isfinite(normals).all(axis=0)
@@ -194,7 +204,7 @@ def unfold_measured(
         differ = np.any(dot_first(corner_n, corner_n[:, :, :1]) < CREASE_COS, axis=1)
     cand = rough_t[differ & np.isfinite(corner_n).all(axis=(0, 2))]
     if cand.size == 0:
-        return _nothing_folded(tri_pts)
+        return _nothing_folded(tri_pts, flat)
     lone, pair_a = _crease_groups(vn.T[tris[cand]])
     cand, lone, pair_a = cand[lone >= 0], lone[lone >= 0], pair_a[lone >= 0]
     # the two sides' planes, from the corners' planes; a: the side of corner 0
@@ -225,9 +235,11 @@ def unfold_measured(
     # explained about as badly by its corners' planes as by its chord)
     chord = np.max(np.where(np.isfinite(dist[:, cand]), dist[:, cand], 0.0), axis=0)
     # (a triangle with a sliver across the crease is nearly flat: its two planes must
-    # explain it as well as a flat one's plane does, and it is never a curved crease)
+    # explain it as well as a flat one's plane does - within SLIGHT: the corners' planes
+    # come from flat triangles, each up to SLIGHT off its own - and it is never a
+    # curved crease)
     rough_c = rough[cand]
-    straight = worst <= FIT * np.where(rough_c, ROUGH, SLIGHT) * size[cand]
+    straight = worst <= np.where(rough_c, FIT * ROUGH, SLIGHT) * size[cand]
     # a straight crease with a curved side (a wall meeting a cone along a ruling): its
     # corners' planes miss the crease; each side's curve across it finds the planes
     curved_crease = rough_c & (worst <= CURVED_FIT * chord)
@@ -280,7 +292,7 @@ def unfold_measured(
         curved_crease[curved] = False
     keep = np.any(seen, axis=1) & (straight | curved_crease)
     if not np.any(keep):
-        return _nothing_folded(tri_pts)
+        return _nothing_folded(tri_pts, flat)
     t_count = tris.shape[0]
     out = tri_pts.copy()
     nan3 = np.full((t_count, 3), np.nan)
@@ -295,6 +307,7 @@ def unfold_measured(
         np.zeros((t_count, 3)),
         np.zeros(t_count),
         np.zeros(t_count, dtype=bool),
+        flat,
     )
     for c in np.flatnonzero(keep):  # few: the triangles a crease runs through
         t = cand[c]
@@ -358,9 +371,9 @@ def _borrowed_planes(tris: IntArray, points: FloatArray, vn: FloatArray) -> Floa
     return out
 
 
-def _nothing_folded(tri_pts: FloatArray) -> Unfolding:
+def _nothing_folded(tri_pts: FloatArray, flat: NDArray[np.bool_]) -> Unfolding:
     """The :class:`Unfolding` of triangles ``tri_pts`` (T, 3, 3) without a crease (its
-    corners are ``tri_pts`` themselves)."""
+    corners are ``tri_pts`` themselves); ``flat`` (T,) as :class:`Unfolding` has it."""
     t_count = tri_pts.shape[0]
     nan3 = np.full((t_count, 3), np.nan)
     rotation = np.zeros((t_count, 3, 3))
@@ -376,6 +389,7 @@ def _nothing_folded(tri_pts: FloatArray) -> Unfolding:
         np.zeros((t_count, 3)),
         np.zeros(t_count),
         np.zeros(t_count, dtype=bool),
+        flat,
     )
 
 

@@ -11,6 +11,11 @@ placed by both triangles and the two places are blended, half and half on the ed
 itself: the map is continuous there, and where both triangles are exact (a plane, a
 straight crease) the blend is too.
 
+Not across a crease that runs along the edge itself (two flat triangles whose planes
+differ by more than a crease's angle, neither unfolded): each side is exact and the two
+agree along the edge, while the neighbour's plane is the other wall's, onto which a
+pixel's point would project wrongly (a kink a band wide along the crease).
+
 Weights are returned on six vertices per pixel: the three corners of its triangle and
 the far corner of each neighbour across its edges.
 """
@@ -21,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import BoolArray, FloatArray, IntArray
-from adaproj_edge.geometry.creases import Unfolding, unfold_creases
+from adaproj_edge.geometry.creases import CREASE_COS, Unfolding, unfold_creases
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import grid_triangles, triangle_normals
@@ -102,6 +107,20 @@ def _in_frame_of(
     return out
 
 
+def _blended_edges(neighbours: IntArray, unfolding: Unfolding, normals: FloatArray) -> BoolArray:
+    """(T, 3): whether the places given by triangle t and its neighbour ``neighbours``
+    (T, 3) across the edge opposite corner k are blended: there is a neighbour, and the
+    edge is no crease (two flat triangles, neither unfolded, whose planes, unit
+    ``normals`` (T, 3), differ by more than a crease's angle)."""
+    nb = np.maximum(neighbours, 0)
+    plain = unfolding.flat & ~unfolding.folded & np.isfinite(normals).all(axis=1)
+    with np.errstate(invalid="ignore"):
+        apart = np.einsum("tj,tkj->tk", normals, normals[nb]) < CREASE_COS
+    crease = plain[:, None] & plain[nb] & apart
+    out: BoolArray = np.asarray((neighbours >= 0) & ~crease, dtype=bool)
+    return out
+
+
 def grid_unfolding(
     grid_uv: FloatArray, depth: FloatArray, projector: Projector, surface: Surface
 ) -> Unfolding:
@@ -171,6 +190,7 @@ def surface_weights(
         axis=1,
     )  # (T, 3): over the edge opposite corner k
     band = np.minimum(BAND, BAND_SHARE * heights.min(axis=1))
+    seam = _blended_edges(neighbours, unfolding, normals)
     out_c = np.zeros((6, *tri.shape), dtype=np.int32)
     out_w = np.zeros((6, *tri.shape))
     pix_corners = corners[tri]  # (H, W, 3)
@@ -182,7 +202,7 @@ def surface_weights(
         nb = neighbours[tri, k]
         dist = barycentric[k] * heights[tri, k]
         b = band[tri]
-        near: BoolArray = np.asarray((dist < b) & (nb >= 0), dtype=bool)
+        near: BoolArray = np.asarray((dist < b) & seam[tri, k], dtype=bool)
         near &= tri_ok[np.maximum(nb, 0)]
         idx = np.nonzero(near)
         if idx[0].size == 0:

@@ -99,7 +99,7 @@ def decide(
     worst = float(np.max(fit))
     chord = float(np.max(np.where(np.isfinite(chord_dist), chord_dist, 0.0)))
     rough = chord > ROUGH * size  # else only a sliver: it must be straight
-    straight = FIT * (ROUGH if rough else SLIGHT) * size
+    straight = (FIT * ROUGH if rough else SLIGHT) * size
     explained = worst <= straight or (rough and worst <= CURVED_FIT * chord)
     unexplained = rough and not explained
     sharp = float(na @ nb) < RULED_CREASE_COS
@@ -220,7 +220,7 @@ def unfold_reference(
                         best, borrowed[v] = off, vertex_n[w]
     vertex_n = borrowed
     out = {}
-    if not rough:
+    if not slight:
         return out
     # the triangles whose corners' planes differ: never a side's smooth neighbours
     differ = set()
