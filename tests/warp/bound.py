@@ -167,8 +167,7 @@ def jacobians(pb: Problem, c: FloatArray) -> tuple[FloatArray, FloatArray]:
         / det[:, None, None]
     )
     j = pb.frames @ inv
-    p_, q_, r_, s_ = j[:, 0, 0], j[:, 0, 1], j[:, 1, 0], j[:, 1, 1]
-    return 0.5 * ((p_ + s_) + 1j * (r_ - q_)), 0.5 * ((p_ - s_) + 1j * (r_ + q_))
+    return _ab(j[:, 0, 0], j[:, 0, 1], j[:, 1, 0], j[:, 1, 1])
 
 
 def optimise(pb: Problem, mu: float, start: FloatArray | None = None) -> FloatArray:
@@ -203,29 +202,16 @@ def optimise(pb: Problem, mu: float, start: FloatArray | None = None) -> FloatAr
     sq = np.sqrt(mu * angle0 / var0)
 
     def residuals(x: FloatArray) -> FloatArray:
-        a, b = jacobians(sub, b_free @ x[: 2 * nf].reshape(-1, 2) + fixed)
-        ab, bb = np.abs(a), np.abs(b)
-        angle = np.minimum(2 * bb / np.maximum(ab - bb, 1e-300), 1e3)
-        size = 0.5 * np.log(np.maximum(ab**2 - bb**2, 1e-300)) - x[-1]
-        return np.concatenate([(angle**2 + EPS**2) ** 0.25, sq * size])
+        return _residuals(sub, b_free, fixed, sq, x)[0]
 
-    pattern = (incidence @ (b_free != 0).astype(np.float64)).tocoo()  # triangle -> unknown
-    rows, cols = [], []
-    for block in range(2):
-        for d in range(2):
-            rows.append(block * t_count + pattern.row)
-            cols.append(2 * pattern.col + d)
-    rows.append(t_count + np.arange(t_count))
-    cols.append(np.full(t_count, 2 * nf))
-    r_all, c_all = np.concatenate(rows), np.concatenate(cols)
-    sparsity = scipy.sparse.coo_matrix(
-        (np.ones(r_all.size), (r_all, c_all)), shape=(2 * t_count, 2 * nf + 1)
-    ).tocsr()
+    def jacobian(x: FloatArray) -> scipy.sparse.csr_matrix:
+        return _residuals(sub, b_free, fixed, sq, x, jacobian=True)[1]
+
     x0 = np.concatenate([v_start[free].ravel(), [m0]])
     res = scipy.optimize.least_squares(
         residuals,
         x0,
-        jac_sparsity=sparsity,
+        jac=jacobian,
         method="trf",
         tr_solver="lsmr",
         x_scale="jac",
@@ -236,6 +222,94 @@ def optimise(pb: Problem, mu: float, start: FloatArray | None = None) -> FloatAr
     out = v_start.copy()
     out[free] = res.x[: 2 * nf].reshape(-1, 2)
     return out
+
+
+def _residuals(
+    sub: Problem,
+    b_free: scipy.sparse.csr_matrix,
+    fixed: FloatArray,
+    sq: float,
+    x: FloatArray,
+    jacobian: bool = False,
+) -> tuple[FloatArray, scipy.sparse.csr_matrix | None]:
+    """``E``'s residuals (2 T,) on the subject's triangles ``sub.tris`` for the unknowns
+    ``x`` (the nf free positions, then ``m``), and (``jacobian``) their derivatives
+    (2 T, 2 nf + 1): an analytic Jacobian, ~20x cheaper than finite differences.
+
+    The derivatives are exact (a check against finite differences:
+    ``tests/warp/test_large_bound.py``): with ``j = F inv(dq)`` (``F`` the triangle's
+    edges in its plane, ``dq`` its content edges), moving sample ``k`` of the triangle
+    by ``e_d`` changes ``dq`` by ``e_d g_k^T`` (``g``: (-1, -1), (1, 0), (0, 1)), so
+    ``dj = -j e_d g_k^T inv(dq)``; ``a`` and ``b`` are linear in ``j``."""
+    nf = b_free.shape[1]
+    c = b_free @ x[: 2 * nf].reshape(-1, 2) + fixed
+    q = c[sub.tris]  # (T, 3, 2)
+    e1, e2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1]
+    # inv(dq), dq's columns the edges e1, e2: rows (e2y, -e2x) and (-e1y, e1x) over det
+    i00, i01, i10, i11 = e2[:, 1] / det, -e2[:, 0] / det, -e1[:, 1] / det, e1[:, 0] / det
+    f = sub.frames
+    j00 = f[:, 0, 0] * i00 + f[:, 0, 1] * i10
+    j01 = f[:, 0, 0] * i01 + f[:, 0, 1] * i11
+    j10 = f[:, 1, 0] * i00 + f[:, 1, 1] * i10
+    j11 = f[:, 1, 0] * i01 + f[:, 1, 1] * i11
+
+    a, b = _ab(j00, j01, j10, j11)
+    ab_, bb = np.abs(a), np.abs(b)
+    gap = np.maximum(ab_ - bb, 1e-300)
+    raw = 2 * bb / gap
+    angle = np.minimum(raw, 1e3)
+    area = np.maximum(ab_**2 - bb**2, 1e-300)
+    size = 0.5 * np.log(area) - x[-1]
+    root = angle**2 + EPS**2
+    values = np.concatenate([root**0.25, sq * size])
+    if not jacobian:
+        return values, None
+    # d residual / d |a|, d |b| (zero where a guard above is in force)
+    live = (raw < 1e3) & (ab_ - bb > 1e-300)
+    d_angle = np.where(live, 0.5 * angle * root**-0.75, 0.0)  # d res / d angle
+    ra = d_angle * (-2 * bb / gap**2)
+    rb = d_angle * (2 * ab_ / gap**2)
+    on = ab_**2 - bb**2 > 1e-300
+    sa = np.where(on, sq * ab_ / area, 0.0)
+    sb = np.where(on, -sq * bb / area, 0.0)
+    ua = np.conj(a) / np.maximum(ab_, 1e-300)  # d|a| = Re(ua da)
+    ub = np.conj(b) / np.maximum(bb, 1e-300)
+    t_count = det.size
+    rows = np.arange(t_count)
+    per_coord = []
+    for d in range(2):
+        parts = []
+        for k, (g1, g2) in enumerate(((-1.0, -1.0), (1.0, 0.0), (0.0, 1.0))):
+            h0 = g1 * i00 + g2 * i10  # g_k^T inv(dq)
+            h1 = g1 * i01 + g2 * i11
+            col0, col1 = (j00, j10) if d == 0 else (j01, j11)  # j e_d
+            da, db = _ab(-col0 * h0, -col0 * h1, -col1 * h0, -col1 * h1)
+            dabs_a, dabs_b = np.real(ua * da), np.real(ub * db)
+            dres = np.concatenate([ra * dabs_a + rb * dabs_b, sa * dabs_a + sb * dabs_b])
+            parts.append((dres, sub.tris[:, k]))
+        data = np.concatenate([p for p, _ in parts])
+        cols = np.concatenate([np.concatenate([idx, idx]) for _, idx in parts])
+        row = np.tile(np.concatenate([rows, t_count + rows]), 3)
+        samples = scipy.sparse.coo_matrix(
+            (data, (row, cols)), shape=(2 * t_count, b_free.shape[0])
+        ).tocsr()
+        per_coord.append(samples @ b_free)  # (2 T, nf)
+    # columns x0, y0, x1, y1, ..., then m
+    stacked = scipy.sparse.hstack([per_coord[0], per_coord[1]]).tocsc()
+    order = np.arange(2 * nf).reshape(2, nf).T.ravel()
+    dm = scipy.sparse.csc_matrix(
+        (np.full(t_count, -sq), (t_count + rows, np.zeros(t_count, dtype=np.intp))),
+        shape=(2 * t_count, 1),
+    )
+    return values, scipy.sparse.hstack([stacked[:, order], dm]).tocsr()
+
+
+def _ab(
+    p_: FloatArray, q_: FloatArray, r_: FloatArray, s_: FloatArray
+) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+    """Complex ``a``, ``b`` of the 2x2 ``[[p, q], [r, s]]`` written ``a z + b conj(z)``."""
+    return 0.5 * ((p_ + s_) + 1j * (r_ - q_)), 0.5 * ((p_ - s_) + 1j * (r_ + q_))
 
 
 def score(pb: Problem, v: FloatArray, mu: float | None) -> Point:

@@ -41,7 +41,7 @@ from adaproj_edge.content.faces import FaceDetector
 from adaproj_edge.content.facetrack import FaceTracker
 from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.content.temporal import TemporalContentMap
-from adaproj_edge.geometry.analytic import get_surface, simulate_surface
+from adaproj_edge.geometry.analytic import get_surface
 from adaproj_edge.render.display_maps import display_float_map
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import WarpCache
@@ -57,6 +57,7 @@ from adaproj_edge.warp.temporal import (
 from adaproj_edge.warp.warpmap import Grid, Warp
 from tests.content.clips import face_frame, subject_frame
 from tests.distortion import Distortion, in_mask, measure
+from tests.warp.conftest import surface as simulate_surface  # cast once per surface
 
 SURFACE = "sphere-concave"
 SIZE = (640, 360)
