@@ -21,6 +21,14 @@ Warm starts (``PlanSettings.warm_start``)
     The planner keeps its last coarse solution; the next refinement of (nearly) the
     same surface starts from it and takes at most ``warm_iterations`` steps.
 
+Anchored placement (``PlanSettings.anchor_rel``)
+    The planner keeps the projector pixel where its last warp showed the content's
+    centre; a content-free warp of (nearly) the same surface keeps the content there
+    while the rectangle stays nearly as large as the largest
+    (:func:`~adaproj_edge.warp.placement.place`'s ``anchor``), and its refinement keeps
+    it too: consecutive estimates of a corner no longer move the content along the
+    ridge.
+
 Video frames (``refine(..., frame_dt=dt)``)
     Refined on the full grid (``PlanSettings.temporal.full_grid``, the default; the
     refinement grid without it, as in ``temporal.LOW_PASS``), the saliency
