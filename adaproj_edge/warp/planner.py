@@ -21,13 +21,13 @@ Warm starts (``PlanSettings.warm_start``)
     The planner keeps its last coarse solution; the next refinement of (nearly) the
     same surface starts from it and takes at most ``warm_iterations`` steps.
 
-Anchored placement (``PlanSettings.anchor_rel``)
+Anchored placement (``PlanSettings.anchor_rel``, off by default)
     The planner keeps the projector pixel where its last warp showed the content's
     centre; a content-free warp of (nearly) the same surface keeps the content there
     while the rectangle stays nearly as large as the largest
     (:func:`~adaproj_edge.warp.placement.place`'s ``anchor``), and its refinement keeps
-    it too: consecutive estimates of a corner no longer move the content along the
-    ridge.
+    it too: consecutive estimates of a corner from a still device no longer move the
+    content along the ridge.
 
 Video frames (``refine(..., frame_dt=dt)``)
     Refined on the full grid (``PlanSettings.temporal.full_grid``, the default; the
@@ -182,7 +182,10 @@ class PlanSettings:
     anchor_rel : float
         A content-free placement keeps the content where the planner's last one put it
         when made for (nearly) the same surface (within this median relative depth:
-        the hand's sway and the depth's noise, not a re-aim; 0: never).
+        the hand's sway and the depth's noise, not a re-aim; 0, the default: never).
+        Off by default: the anchor is a projector pixel, and on a hand-held corner
+        (a replayed session with tremor) it raised the stabilised jitter, where the
+        placement alone no longer jumped.
     temporal : TemporalWarpSettings
         Steps per video frame and the smoothing in time (refinements with
         ``frame_dt``).
@@ -192,7 +195,7 @@ class PlanSettings:
     warm_start: bool = False
     warm_rel: float = 0.01
     warm_iterations: int = 4
-    anchor_rel: float = 0.03
+    anchor_rel: float = 0.0
     temporal: TemporalWarpSettings = field(default_factory=TemporalWarpSettings)
 
 
