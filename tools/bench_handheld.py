@@ -227,6 +227,7 @@ def _wall_mesh(tmp: Path, yaw_deg: float) -> str:
 
 def sweep(
     offset: float,
+    calibrated: bool,
     tmp: Path,
     seconds: float,
     tremors: list[float],
@@ -247,7 +248,8 @@ def sweep(
     )
     print(
         f"  up alone (no warps), walls at yaw {yaws}, accelerometer offset {offset} m/s^2 "
-        "RMS: worst / median of the seeds' max"
+        f"RMS ({'calibrated' if calibrated else 'not calibrated'}): worst / median of the "
+        "seeds' max"
     )
     cpu = time.process_time()
     overall: tuple[float, str] = (0.0, "")
@@ -257,7 +259,7 @@ def sweep(
             maxima = []
             for seed in range(seeds):
                 hand = HandMotion(seconds, seed=seed, tremor_deg=tremor, roll_deg=roll)
-                trace = trace_upright(hand, seed, noise)
+                trace = trace_upright(hand, seed, noise, calibrated=calibrated)
                 for yaw in yaws:
                     err = float(trace.error_deg(wall_normal(yaw))[trace.still].max())
                     maxima.append(err)
@@ -275,7 +277,7 @@ def sweep(
                 5.0, seed=seed, tremor_deg=tremor, move_rad=0.0, move_m=0.0,
                 roll_move_deg=20.0, roll_move_at_s=2.5, roll_move_s=0.4,
             )  # fmt: skip
-            trace = trace_upright(hand, seed, noise, every=1, from_s=2.5)
+            trace = trace_upright(hand, seed, noise, every=1, from_s=2.5, calibrated=calibrated)
             err = trace.error_deg(wall_normal(0.0))
             late = trace.t[err > 1.0]
             took = float(late.max() - 2.5) if late.size else 0.0
@@ -321,7 +323,12 @@ def main() -> int:
         type=float,
         default=0.1,
         help="accelerometer zero-g offset, m/s^2 RMS per axis, for the up alone (sweep; "
-        "0.1: uncalibrated, as the session simulator; 0.02: a calibrated unit)",
+        "0.1: as the session simulator)",
+    )
+    ap.add_argument(
+        "--uncalibrated",
+        action="store_true",
+        help="the up alone without the calibration's accelerometer offset (sweep)",
     )
     ap.add_argument("--seeds", type=int, default=10, help="seeds per setting (sweep)")
     ap.add_argument(
@@ -343,6 +350,7 @@ def main() -> int:
         if "sweep" in args.only:
             sweep(
                 args.offset,
+                not args.uncalibrated,
                 tmp,
                 args.seconds,
                 args.tremors,

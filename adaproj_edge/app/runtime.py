@@ -259,7 +259,7 @@ class Runtime:
             self.screen.on_imu(sample)
         change = self.motion.update(sample)
         R = self.calibration.R_P_I
-        accel = R @ np.asarray(sample.accel, dtype=np.float64)
+        accel = R @ (np.asarray(sample.accel, dtype=np.float64) - self.calibration.accel_offset)
         rate = R @ (np.asarray(sample.gyro, dtype=np.float64) - self.motion.bias.value)
         # gravity decides by itself when the accelerometer can be used (the tracker's
         # "moving" also counts a tremor too strong for the depth average)

@@ -25,7 +25,12 @@ from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.motion.tracker import MotionSettings, MotionTracker
 from adaproj_edge.motion.upright import Upright, UprightSettings
 from adaproj_edge.session.hand import HandMotion
-from adaproj_edge.session.simulator import ImuNoise, SimulationSettings, imu_readings
+from adaproj_edge.session.simulator import (
+    ImuNoise,
+    SimulationSettings,
+    imu_readings,
+    recorded_calibration,
+)
 from adaproj_edge.warp.placement import DEFAULT_UP
 
 T0_NS = 1_000_000_000
@@ -64,14 +69,20 @@ def trace_upright(
     motion: MotionSettings | None = None,
     every: int = 7,
     from_s: float = 0.9,
+    calibrated: bool = True,
 ) -> UprightTrace:
     """Feed the runtime's up chain the IMU samples of ``hand`` (offsets and noise drawn
     from ``seed`` as the session simulator does) and keep the up every ``every``
-    samples from ``from_s`` seconds (when a session's first warp is shown)."""
-    cal = calibration or Calibration.default()
+    samples from ``from_s`` seconds (when a session's first warp is shown).
+
+    ``calibration``: the device's (its accelerometer offset is taken out of every
+    reading, as the runtime does); by default the nominal one with the offset the
+    simulator records (``calibrated``: measured by a calibration, else none)."""
     sim = SimulationSettings(
-        seconds=hand.seconds, seed=seed, motion=hand, imu_noise=noise or ImuNoise()
-    )
+        seconds=hand.seconds, seed=seed, motion=hand, imu_noise=noise or ImuNoise(),
+        accel_calibrated=calibrated,
+    )  # fmt: skip
+    cal = calibration or recorded_calibration(Calibration.default(), sim)
     t, acc, gyr = imu_readings(hand, cal.R_P_I, sim, np.random.default_rng(seed))
     tracker = MotionTracker(cal.R_P_I, motion)
     chain = Upright(upright)
@@ -84,7 +95,7 @@ def trace_upright(
         sample = ImuSample(ts, ts, tuple(acc[i]), tuple(gyr[i]), 30.0)
         tracker.update(sample)
         rate = R @ (gyr[i] - tracker.bias.value)
-        chain.update(ts, R @ acc[i], rate)
+        chain.update(ts, R @ (acc[i] - cal.accel_offset), rate)
         if i % every == 0 and t[i] >= from_s:
             up = chain.up
             keep_t.append(float(t[i]))

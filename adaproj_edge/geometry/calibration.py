@@ -22,15 +22,18 @@ The file format (``hw/calibration/<board>.toml``, and the JSON attachment
     [extrinsics]
     T_P_D = [[...], [...], [...], [0, 0, 0, 1]]   # 4x4, maps points in D to P, metres
     R_P_I = [[...], [...], [...]]                 # 3x3, rotates IMU vectors into P
+    [imu]                  # optional: written by `adaproj calibrate`
+    accel_offset = [bx, by, bz]   # the accelerometer's zero-g offset in frame I, m/s^2
+                                  # (subtracted from every reading); absent: zero
     [quality]              # optional: written by `adaproj calibrate` (how good the
     rms_px = 0.31          # solve was; a file without it is a nominal guess)
     verdict = "good"
     ...
 
-Files without ``distortion``, ``vignetting`` or ``[quality]`` (every nominal file) load
-as before; :meth:`Calibration.to_toml` writes the file, :meth:`Calibration.to_dict` the
-JSON of session attachments (``distortion`` and ``vignetting`` only when not zero,
-``quality`` only when set).
+Files without ``distortion``, ``vignetting``, ``[imu]`` or ``[quality]`` (every nominal
+file) load as before; :meth:`Calibration.to_toml` writes the file, :meth:`Calibration.to_dict`
+the JSON of session attachments (``distortion``, ``vignetting`` and ``[imu]`` only when not
+zero, ``quality`` only when set).
 """
 
 from __future__ import annotations
@@ -57,6 +60,8 @@ MAX_SIDE = 16384
 """Pixels a side of the projector's or the depth camera's image, at most."""
 BASELINE = (0.0, 1.0)
 """The stereo baseline's range, metres (above 0)."""
+ACCEL_OFFSET = (-2.0, 2.0)
+"""The accelerometer offset's range per axis, m/s^2 (an LSM6DSOX's is within 0.2)."""
 
 
 @dataclass(frozen=True)
@@ -130,6 +135,9 @@ class Calibration:
         None for a nominal file.
     vignetting : Vignetting, optional
         The projector lens's relative illumination; the default: none.
+    accel_offset : (3,) float array, optional
+        The accelerometer's zero-g offset in frame I, m/s^2: what it reads beyond the
+        specific force (subtracted from every reading); zeros when not measured.
     """
 
     projector: Projector
@@ -139,8 +147,15 @@ class Calibration:
     distortion: FloatArray = field(default_factory=lambda: np.zeros(5))
     quality: dict[str, Any] | None = None
     vignetting: Vignetting = field(default_factory=Vignetting)
+    accel_offset: FloatArray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self) -> None:
+        b = np.asarray(self.accel_offset, dtype=np.float64).ravel()
+        if b.size != 3:
+            raise InputError(f"[imu] accel_offset must be 3 numbers, got {b.size}")
+        for k, x in enumerate(b.tolist()):
+            checks.number(x, f"[imu] accel_offset[{k}]", *ACCEL_OFFSET)
+        object.__setattr__(self, "accel_offset", b)
         dist = np.zeros(5)
         d = np.asarray(self.distortion, dtype=np.float64).ravel()
         if d.size > 5 or not np.all(np.isfinite(d)) or np.any(np.abs(d) > 10):
@@ -170,8 +185,8 @@ class Calibration:
 
     # ------------------------------------------------------------------ formats
     def to_dict(self) -> dict[str, Any]:
-        """The calibration as the JSON object of session attachments (``distortion`` only when
-        not zero, ``quality`` only when set).
+        """The calibration as the JSON object of session attachments (``distortion`` and
+        ``imu`` only when not zero, ``quality`` only when set).
         """
         p, d = self.projector, self.depth
         projector: dict[str, Any] = {"width": p.width, "height": p.height, "K": p.K.tolist()}
@@ -190,6 +205,8 @@ class Calibration:
             },
             "extrinsics": {"T_P_D": self.T_P_D.tolist(), "R_P_I": self.R_P_I.tolist()},
         }
+        if np.any(self.accel_offset):
+            out["imu"] = {"accel_offset": self.accel_offset.tolist()}
         if self.quality is not None:
             out["quality"] = dict(self.quality)
         return out
@@ -214,7 +231,8 @@ class Calibration:
         if data.get("format") != FORMAT:
             raise InputError(f"{what}: format must be {FORMAT!r}, got {data.get('format')!r}")
         with field_errors(what):
-            unknown = set(data) - {"format", "projector", "depth", "extrinsics", "quality"}
+            known = {"format", "projector", "depth", "extrinsics", "imu", "quality"}
+            unknown = set(data) - known
             if unknown:
                 raise InputError(f"unknown keys {sorted(map(str, unknown))}")
             pj, ex = _table(data, "projector"), _table(data, "extrinsics")
@@ -249,7 +267,14 @@ class Calibration:
                     2,
                 )
             )
-            return cls(projector, depth, T, R, dist, quality, vignetting)
+            offset = np.zeros(3)
+            if "imu" in data:
+                imu = _table(data, "imu")
+                extra = set(imu) - {"accel_offset"}
+                if extra:
+                    raise InputError(f"[imu]: unknown keys {sorted(map(str, extra))}")
+                offset = _offset(imu.get("accel_offset", [0.0, 0.0, 0.0]))
+            return cls(projector, depth, T, R, dist, quality, vignetting, offset)
 
     @classmethod
     def from_json(cls, text: str | bytes, what: str = "calibration") -> Calibration:
@@ -280,6 +305,15 @@ class Calibration:
         except RecursionError:
             raise InputError(f"calibration file {path}: values nested too deeply") from None
         return cls.from_dict(data, str(path))
+
+
+def _offset(value: Any) -> FloatArray:
+    """``[imu] accel_offset``: a list of three numbers in :data:`ACCEL_OFFSET`."""
+    if not isinstance(value, list | tuple) or len(value) != 3:
+        raise InputError(f"[imu] accel_offset must be a list of 3 numbers, got {value!r:.40}")
+    return np.array(
+        [checks.number(x, f"[imu] accel_offset[{k}]", *ACCEL_OFFSET) for k, x in enumerate(value)]
+    )
 
 
 def _table(data: dict[str, Any], name: str) -> dict[str, Any]:

@@ -30,6 +30,16 @@ also steps along the region's two dominant side directions (:func:`side_directio
 Along such a ridge ``r`` is nearly flat, often with a maximum at either end that wins
 by 0.1 % one frame and loses the next; the centring above also keeps consecutive
 frames from jumping between them.
+
+That centring alone is not continuous in the region, though: the climb that finds the
+largest lands in one local optimum or another from one estimate of a surface to the
+next (a corner's unfolded region has several), the centring starts from where it
+landed, and along a nearly flat ridge the point where the clearance falls to 90 % of
+the largest moves far for a small change of that largest. A rectangle to ``keep``
+(the last one shown, on the same surface) is therefore kept where it is while its
+clearance stays within :data:`NEAR` + :data:`KEEP_SLACK` of the largest found from it
+or from the raster, and moved to the nearest such centre when it does not; only an
+optimum :data:`CLEARLY` larger elsewhere replaces it (:func:`_kept`).
 """
 
 from __future__ import annotations
@@ -49,6 +59,8 @@ from adaproj_edge.geometry.triangles import unique_edges
 RASTER = 256
 TOLERANCE = 4e-4  # the search stops at steps this small (of the region's extent)
 NEAR = 0.1  # a rectangle this much narrower than the largest may be taken to be centred
+KEEP_SLACK = 0.05  # a kept centre may be narrower again by this much of the largest
+CLEARLY = 0.1  # an optimum elsewhere this much larger than the kept one's replaces it
 _SHIFT = 4
 _DIRECTIONS = np.array(
     [[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=np.float64
@@ -195,6 +207,7 @@ def inscribed_rectangle(
     start: FloatArray | None = None,
     near: float = NEAR,
     loops: list[IntArray] | None = None,
+    keep: FloatArray | None = None,
 ) -> Rect:
     """Largest rectangle of ``aspect`` (width / height) inside the union of triangles.
 
@@ -220,6 +233,10 @@ def inscribed_rectangle(
     loops : list of int arrays, optional
         :func:`boundary_loops` of ``boundary`` ([] when they do not chain simply), when
         the caller keeps them (they depend on the mesh's topology alone).
+    keep : (2,) float array, optional
+        The centre of the rectangle shown last (the same surface, estimated again): kept
+        while it is nearly as large as the largest (see the module's description), so
+        the placement is continuous in the region.
     """
     if tris.size == 0:
         raise WarpError("no surface triangles to place the content on")
@@ -248,11 +265,49 @@ def inscribed_rectangle(
         c, step = _raster_start(q, tris, resolution, bounds, edges, loops)
         r = float(segs.clearance(c))
     c, r = _climb(c, r, step, tol, segs, pattern)
+    if keep is not None:
+        ck = np.asarray(keep, dtype=np.float64) * np.array([1.0, aspect])
+        kept = _kept(ck, c, r, near, extent, tol, segs, pattern, region)
+        if kept is not None:
+            c, r = kept
+            return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
     if near > 0:
         cc, rc = _centre(c, r, (1.0 - near) * r, region.centroid(), tol, segs, pattern)
         if region.inside(cc):  # (the clearance alone does not tell in from out)
             c, r = cc, rc
     return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
+
+
+def _kept(
+    keep: FloatArray,
+    c: FloatArray,
+    r: float,
+    near: float,
+    extent: float,
+    tol: float,
+    segs: Segments,
+    pattern: FloatArray,
+    region: _Triangles,
+) -> tuple[FloatArray, float] | None:
+    """The square to show instead of a fresh search's (``c``, clearance ``r``, before
+    centring) when the one shown last was centred at ``keep`` (2,) (in the square's
+    units): ``keep`` itself while its clearance is at least ``1 - near - KEEP_SLACK``
+    of the largest found (from the raster and from ``keep``), else the nearest centre
+    that is; None (the fresh search's) when ``keep`` is outside the region or an
+    optimum :data:`CLEARLY` larger than the one nearest ``keep`` is elsewhere."""
+    if not region.inside(keep):
+        return None
+    rk = float(segs.clearance(keep))
+    if rk <= 0:
+        return None
+    cw, rw = _climb(keep, rk, 0.002 * extent, tol, segs, pattern)
+    if r > (1.0 + CLEARLY) * rw:
+        return None
+    least = (1.0 - near - KEEP_SLACK) * max(r, rw)
+    if rk >= least:
+        return keep, rk
+    cc, rc = _centre(cw, rw, least, keep, tol, segs, pattern)
+    return (cc, rc) if region.inside(cc) else None
 
 
 def _climb(

@@ -202,3 +202,40 @@ def grid_cells(positions: FloatArray, n: int, step: int = 1) -> tuple[IntArray, 
     c = np.clip(np.searchsorted(positions, x, side="right") - 1, 0, positions.size - 2)
     f = (x - positions[c]) / (positions[c + 1] - positions[c])
     return c, f
+
+
+def carry_through_triangles(
+    q: FloatArray, g: FloatArray, xy: FloatArray, slack: float = 1e-6
+) -> FloatArray:
+    """Points ``xy`` (N, 2) carried from triangles ``q`` (T, 3, 2) to triangles ``g``
+    (T, 3, 2) corner for corner (each triangle linear; the first triangle of ``q`` that
+    holds a point, its box widened by ``slack`` so that a point on an edge is held),
+    NaN where none holds it (a NaN corner holds none): (N, 2)."""
+    out: FloatArray = np.full((len(xy), 2), np.nan)
+    # the pairs whose triangle's box holds the point (a NaN corner holds none), in
+    # triangle order; then barycentric coordinates for those pairs alone
+    c0, c1, c2 = q[:, 0], q[:, 1], q[:, 2]  # (three corners: not a slow reduce over 3)
+    lo = np.minimum(np.minimum(c0, c1), c2) - slack  # (T, 2); NaN propagates
+    hi = np.maximum(np.maximum(c0, c1), c2) + slack
+    near = (
+        (xy[None, :, 0] >= lo[:, None, 0])
+        & (xy[None, :, 0] <= hi[:, None, 0])
+        & (xy[None, :, 1] >= lo[:, None, 1])
+        & (xy[None, :, 1] <= hi[:, None, 1])
+    )
+    ti, ni = np.nonzero(near)
+    a = c0[ti]
+    v0, v1 = c1[ti] - a, c2[ti] - a
+    det = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
+    d = xy[ni] - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (d[:, 0] * v1[:, 1] - d[:, 1] * v1[:, 0]) / det
+        t = (v0[:, 0] * d[:, 1] - v0[:, 1] * d[:, 0]) / det
+    inside = (s >= -1e-9) & (t >= -1e-9) & (s + t <= 1 + 1e-9) & np.isfinite(s + t)
+    # the first triangle holding each point
+    points, first = np.unique(ni[inside], return_index=True)
+    k = np.flatnonzero(inside)[first]
+    gk = g[ti[k]]  # (M, 3, 2)
+    sk, tk = s[k, None], t[k, None]
+    out[points] = gk[:, 0] + sk * (gk[:, 1] - gk[:, 0]) + tk * (gk[:, 2] - gk[:, 0])
+    return out

@@ -189,6 +189,15 @@ def report_dict(result: CalibrationResult, verdict: Verdict) -> dict[str, Any]:
             "sigma_deg": float(f"{imu.sigma_deg:.4g}"),
             "up_in_P": [round(float(v), 4) for v in imu.up],
         },
+        "accel_offset": {
+            "measured": result.accel.measured,
+            "problem": result.accel.problem,
+            "offset_mps2": [round(float(v), 5) for v in result.accel.offset],
+            "gravity_mps2": round(result.accel.gravity, 4),
+            "rms_mps2": round(result.accel.rms, 5),
+            "sigma_across_mps2": float(f"{result.accel.sigma_across:.4g}"),
+            "spread_deg": round(result.accel.spread_deg, 2),
+        },
         "depth_range_m": [round(min(d[0] for d in depths), 3), round(max(d[2] for d in depths), 3)]
         if depths
         else None,

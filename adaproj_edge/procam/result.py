@@ -2,7 +2,9 @@
 
 :func:`solve_capture` solves the projector model and ``T_P_D`` from every pose's
 pairs (:mod:`~adaproj_edge.procam.solve`), then ``R_P_I`` from the scene's planes
-and the gyro (:mod:`~adaproj_edge.procam.imu`) with the solved ``T_P_D``, and
+and the gyro (:mod:`~adaproj_edge.procam.imu`) with the solved ``T_P_D`` and the
+accelerometer's offset from the still poses' readings (:mod:`~adaproj_edge.procam.accel`),
+and
 returns the new :class:`~adaproj_edge.geometry.calibration.Calibration` (the depth
 model stays the device's own) with what the report needs. The verdict is
 :func:`adaproj_edge.procam.report.judge`'s.
@@ -12,13 +14,14 @@ Pure: arrays in, arrays out.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.projector import Projector
+from adaproj_edge.procam.accel import AccelOffsetSolution, solve_accel_offset
 from adaproj_edge.procam.imu import ImuSolution, PoseMotion, solve_imu_rotation
 from adaproj_edge.procam.pairs import Pairs
 from adaproj_edge.procam.procedure import CaptureRun
@@ -39,6 +42,7 @@ class CalibrationResult:
     projector: ProjectorSolution
     imu: ImuSolution
     run: CaptureRun
+    accel: AccelOffsetSolution = field(default_factory=AccelOffsetSolution)
 
 
 def nominal_model(calibration: Calibration) -> ProjectorModel:
@@ -70,6 +74,8 @@ def solve_capture(
     m = sol.model
     motions = [PoseMotion(q.normals, q.gyro_bias, q.accel, q.start_ns, q.end_ns) for q in run.poses]
     imu = solve_imu_rotation(motions, run.imu_t, run.imu_gyro, m.T_P_D[:3, :3], nominal.R_P_I)
+    accel = solve_accel_offset(np.array([q.accel for q in run.poses]).reshape(-1, 3))
+    offset = accel.offset if accel.measured else nominal.accel_offset
     K = m.K.copy()
     K[0, 1] = 0.0
     # the structured light does not measure the lens's vignetting: the nominal's is kept
@@ -80,8 +86,9 @@ def solve_capture(
         imu.R_P_I,
         m.distortion.copy(),
         vignetting=nominal.vignetting,
+        accel_offset=offset,
     )
-    return CalibrationResult(cal, nominal, sol, imu, run)
+    return CalibrationResult(cal, nominal, sol, imu, run, accel)
 
 
 def pose_depths(run: CaptureRun) -> list[tuple[float, float, float]]:

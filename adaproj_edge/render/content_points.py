@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from adaproj_edge.arrays import FloatArray
-from adaproj_edge.geometry.triangles import grid_triangles
+from adaproj_edge.geometry.triangles import carry_through_triangles, grid_triangles
 from adaproj_edge.warp.warpmap import Warp
 
 GRID = 5
@@ -35,31 +35,4 @@ def frame_pixels(warp: Warp, xy: FloatArray) -> FloatArray:
     tris = grid_triangles(rows - 1, cols - 1)
     q = warp.image_xy.reshape(-1, 2)[tris]  # (T, 3, 2) content corners
     g = warp.grid_uv.reshape(-1, 2)[tris]
-    out: FloatArray = np.full((len(xy), 2), np.nan)
-    # the pairs whose triangle's box holds the point (a NaN corner holds none), in
-    # triangle order; then barycentric coordinates for those pairs alone
-    c0, c1, c2 = q[:, 0], q[:, 1], q[:, 2]  # (three corners: not a slow reduce over 3)
-    lo = np.minimum(np.minimum(c0, c1), c2) - BOX_SLACK  # (T, 2); NaN propagates
-    hi = np.maximum(np.maximum(c0, c1), c2) + BOX_SLACK
-    near = (
-        (xy[None, :, 0] >= lo[:, None, 0])
-        & (xy[None, :, 0] <= hi[:, None, 0])
-        & (xy[None, :, 1] >= lo[:, None, 1])
-        & (xy[None, :, 1] <= hi[:, None, 1])
-    )
-    ti, ni = np.nonzero(near)
-    a = c0[ti]
-    v0, v1 = c1[ti] - a, c2[ti] - a
-    det = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
-    d = xy[ni] - a
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = (d[:, 0] * v1[:, 1] - d[:, 1] * v1[:, 0]) / det
-        t = (v0[:, 0] * d[:, 1] - v0[:, 1] * d[:, 0]) / det
-    inside = (s >= -1e-9) & (t >= -1e-9) & (s + t <= 1 + 1e-9) & np.isfinite(s + t)
-    # the first triangle holding each point
-    points, first = np.unique(ni[inside], return_index=True)
-    k = np.flatnonzero(inside)[first]
-    gk = g[ti[k]]  # (M, 3, 2)
-    sk, tk = s[k, None], t[k, None]
-    out[points] = gk[:, 0] + sk * (gk[:, 1] - gk[:, 0]) + tk * (gk[:, 2] - gk[:, 0])
-    return out
+    return carry_through_triangles(q, g, xy, BOX_SLACK)

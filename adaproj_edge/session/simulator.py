@@ -9,8 +9,10 @@ frame is lit, is interpolated to well under a microradian), the ``truth-surface.
 attachment (with the mesh file for meshes) and, in the session metadata, the hand's
 intent (``hand``: still phases, tremor, sway, roll; :data:`HAND_KEY`), so tests can
 score what the device estimates and shows. IMU samples arrive as the driver reads the
-chip's FIFO: in batches every ``ImuTiming.read_period_s``. Everything follows from the
-seed: the same arguments give the same file.
+chip's FIFO: in batches every ``ImuTiming.read_period_s``. The recorded calibration
+carries the accelerometer's offset as the device's own calibration would have measured
+it (``SimulationSettings.accel_calibrated``, :func:`recorded_calibration`). Everything
+follows from the seed: the same arguments give the same file.
 
 Given a ``truth`` rig, the world follows it (depth seen through its ``T_P_D``, the
 IMU turned by its ``R_P_I``, the true projector lighting the surface) while the
@@ -50,6 +52,7 @@ from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.hal.lsm6dsox import Lsm6dsoxConfig
 from adaproj_edge.progress import Progress
 from adaproj_edge.session import schemas
+from adaproj_edge.session.accel_calibration import with_accel_offset
 from adaproj_edge.session.clutter import CLUTTER
 from adaproj_edge.session.codec import Record
 from adaproj_edge.session.hand import GRAVITY_W, HandMotion
@@ -92,13 +95,15 @@ class ImuNoise:
     The per-sample noise is the density times the square root of half the rate (the
     bandwidth): 0.008 m/s^2 and 0.0007 rad/s at 208 Hz. The accelerometer's offset
     tilts the gravity estimate directly (0.1 m/s^2 is 0.6 degrees): a unit whose offset
-    was calibrated keeps about 0.02 m/s^2 (2 mg).
+    was calibrated keeps about 0.02 m/s^2 (2 mg), ``accel_offset_drift``
+    (:mod:`~adaproj_edge.session.accel_calibration`).
     """
 
     accel_density: float = 7.8e-4  # m/s^2/sqrt(Hz) (~80 ug/sqrt(Hz))
     gyro_density: float = 6.9e-5  # rad/s/sqrt(Hz) (~3.8 mdps/sqrt(Hz))
     accel_bias_sigma: float = 0.1  # m/s^2 (~10 mg)
     gyro_bias_sigma: float = 0.005  # rad/s (~0.3 dps)
+    accel_offset_drift: float = 0.02  # m/s^2: the offset's move since its calibration
 
     def sigmas(self, rate_hz: float) -> tuple[float, float]:
         """Per-sample accelerometer (m/s^2) and gyro (rad/s) noise at ``rate_hz``."""
@@ -133,6 +138,7 @@ class SimulationSettings:
     imu_timing: ImuTiming = field(default_factory=ImuTiming)
     stereo: StereoNoise = field(default_factory=default_noise)
     motion: HandMotion | None = None
+    accel_calibrated: bool = True  # the recorded calibration carries the accel offset
 
     def hand(self) -> HandMotion:
         """The hand motion to simulate: :attr:`motion`, or a hand path of ``seconds`` seeded
@@ -249,12 +255,28 @@ def simulate(scene: Scene, calibration: Calibration, settings: SimulationSetting
     return [r for _, _, r in recs]
 
 
+def recorded_calibration(calibration: Calibration, settings: SimulationSettings) -> Calibration:
+    """The calibration a session of ``settings`` records: ``calibration`` with the
+    accelerometer offset ``adaproj calibrate`` would have measured on the session's IMU
+    (``settings.accel_calibrated``; :mod:`~adaproj_edge.session.accel_calibration`),
+    else as it is."""
+    if not settings.accel_calibrated:
+        return calibration
+    n = settings.imu_noise
+    return with_accel_offset(
+        calibration, settings.seed, n.accel_bias_sigma, n.sigmas(settings.imu.rate_hz)[0],
+        settings.imu.accel_scale, n.accel_offset_drift, settings.imu.rate_hz,
+    )  # fmt: skip
+
+
 def imu_readings(
     hand: HandMotion, R_P_I: FloatArray, settings: SimulationSettings, rng: np.random.Generator
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """What the IMU reports of ``hand``'s motion over ``settings.seconds``: sample times
     (N,) seconds, accelerometer (N, 3) m/s^2 and gyro (N, 3) rad/s in the IMU frame
-    (noise, zero offsets drawn from ``rng`` and quantisation included)."""
+    (noise, zero offsets drawn from ``rng`` and quantisation included; the
+    accelerometer's offset is ``rng``'s first draw,
+    :func:`~adaproj_edge.session.accel_calibration.session_accel_offset`)."""
     t_imu = np.arange(0.0, settings.seconds, 1.0 / settings.imu.rate_hz)
     f_p, w_p = hand.imu_truth(t_imu)
     R_I_P = np.asarray(R_P_I, dtype=np.float64).T
@@ -323,6 +345,7 @@ def simulate_session(
     if not 0 < settings.depth_fps <= 60:
         raise InputError(f"the depth frame rate must be in (0, 60], got {settings.depth_fps}")
     recs = simulate(scene, truth or calibration, settings)
+    calibration = recorded_calibration(calibration, settings)
     meta = {
         "source": "simulator",
         "surface": json.dumps(scene.spec),

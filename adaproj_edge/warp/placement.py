@@ -5,6 +5,13 @@ rotation that makes "down" on the surface (:mod:`~adaproj_edge.warp.upright`: gr
 on a wall, toward the device on a floor) point down in the content, then the similarity
 that makes the content rectangle the maximal inscribed rectangle of the covered region
 (paper §4.1).
+
+Placed again for a new estimate of the same surface, the rectangle is kept where the
+last one was (``anchor``: its centre's projector pixel, :attr:`Placement.uv`) while it
+is nearly as large as a fresh search's (:func:`~adaproj_edge.geometry.rectangle.
+inscribed_rectangle`'s ``keep``): a fresh search on each estimate lands in one local
+optimum or another, and on a corner the content jumped along the ridge by tens of
+pixels between consecutive depth frames.
 """
 
 from __future__ import annotations
@@ -17,6 +24,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.rectangle import NEAR, boundary_loops, inscribed_rectangle
+from adaproj_edge.geometry.triangles import carry_through_triangles
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.upright import upright
 
@@ -31,12 +39,14 @@ class Placement:
     scale: float
     offset: FloatArray
     centre: FloatArray | None = None  # the rectangle's centre before scaling (warm starts)
+    uv: FloatArray | None = None  # the rectangle's centre in projector pixels (anchors)
+    kept: bool = False  # placed to keep an anchor: placements from it keep its centre
 
     def for_scaled(self, k: float) -> Placement:
         """The same placement of positions scaled by ``k`` (``v * k``): the content lands
         where it did, and the rectangle's centre, in the positions' units, scales too."""
         centre = None if self.centre is None else self.centre * k
-        return Placement(self.angle, self.scale / k, self.offset, centre)
+        return Placement(self.angle, self.scale / k, self.offset, centre, self.uv, self.kept)
 
     @cached_property
     def _rotation(self) -> FloatArray:
@@ -131,6 +141,7 @@ def place(
     content_size: tuple[int, int],
     up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
     previous: Placement | None = None,
+    anchor: FloatArray | None = None,
 ) -> Placement:
     """Upright rotation and inscribed-rectangle similarity for positions ``v`` (n, 2).
 
@@ -140,7 +151,13 @@ def place(
     size (:mod:`adaproj_edge.geometry.rectangle`): where the largest rectangle can
     slide (content of another aspect than the region, a tilted wall, a region turned in
     a rolled projector's frame) a person expects it in the middle, and consecutive
-    frames do not jump between the ends of a ridge.
+    frames do not jump between the ends of a ridge. The rectangle is kept where it was
+    (``previous``'s centre; else ``anchor`` (2,), the projector pixel where the last
+    placement of this surface had its centre) while it stays nearly as large as the
+    largest: the placement is continuous in the surface. ``previous``'s centre is kept
+    only when it was placed so (``Placement.kept``: an anchored placement and the
+    refinement's from it); otherwise, as in a one-shot warp, each placement is centred
+    afresh and the alternation's result does not depend on where it started.
     """
     if previous is None:
         angle = upright_angle(mesh, v, np.asarray(up, dtype=np.float64))
@@ -149,13 +166,22 @@ def place(
         angle, start = previous.angle, previous.centre
     rot = Placement(angle, 1.0, np.zeros(2))
     vr = rot.apply(v)
+    corners = mesh.tris
+    keep = start if previous is not None and previous.kept else None
+    if previous is None and anchor is not None:
+        at = np.asarray(anchor, dtype=np.float64).reshape(1, 2)
+        found = carry_through_triangles(mesh.uv[corners], vr[corners], at)[0]
+        keep = found if np.all(np.isfinite(found)) else None
     w, h = content_size
     loops = mesh.topology.remember("boundary loops", lambda: boundary_loops(mesh.boundary) or [])
     rect = inscribed_rectangle(
-        vr, mesh.tris, w / h, boundary=mesh.boundary, start=start, near=NEAR, loops=loops
-    )
+        vr, mesh.tris, w / h, boundary=mesh.boundary, start=start, near=NEAR, loops=loops,
+        keep=keep,
+    )  # fmt: skip
     scale = w / rect.width
     # content pixel centres at integers: the rectangle's corner is pixel (-0.5, -0.5)
     offset = np.array([-0.5 - scale * rect.x0, -0.5 - scale * rect.y0])
     centre = np.array([rect.x0 + rect.width / 2, rect.y0 + rect.height / 2])
-    return Placement(angle, scale, offset, centre)
+    uv = carry_through_triangles(vr[corners], mesh.uv[corners], centre[None, :])[0]
+    known = uv if np.all(np.isfinite(uv)) else None
+    return Placement(angle, scale, offset, centre, known, keep is not None)

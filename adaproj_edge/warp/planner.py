@@ -21,6 +21,14 @@ Warm starts (``PlanSettings.warm_start``)
     The planner keeps its last coarse solution; the next refinement of (nearly) the
     same surface starts from it and takes at most ``warm_iterations`` steps.
 
+Anchored placement (``PlanSettings.anchor_rel``, off by default)
+    The planner keeps the projector pixel where its last warp showed the content's
+    centre; a content-free warp of (nearly) the same surface keeps the content there
+    while the rectangle stays nearly as large as the largest
+    (:func:`~adaproj_edge.warp.placement.place`'s ``anchor``), and its refinement keeps
+    it too: consecutive estimates of a corner from a still device no longer move the
+    content along the ridge.
+
 Video frames (``refine(..., frame_dt=dt)``)
     Refined on the full grid (``PlanSettings.temporal.full_grid``, the default; the
     refinement grid without it, as in ``temporal.LOW_PASS``), the saliency
@@ -67,6 +75,7 @@ from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.errors import InputError, WarpError
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.geometry.triangles import carry_through_triangles, grid_triangles
 from adaproj_edge.warp.adaptive import adaptive_mesh
 from adaproj_edge.warp.coarse import coarse_cells_of, coarse_indices, upsample_field
 from adaproj_edge.warp.engine import (
@@ -178,6 +187,13 @@ class PlanSettings:
     warm_rel : float
     warm_iterations : int
         At most this many steps from a warm start.
+    anchor_rel : float
+        A content-free placement keeps the content where the planner's last one put it
+        when made for (nearly) the same surface (within this median relative depth:
+        the hand's sway and the depth's noise, not a re-aim; 0, the default: never).
+        Off by default: the anchor is a projector pixel, and on a hand-held corner
+        (a replayed session with tremor) it raised the stabilised jitter, where the
+        placement alone no longer jumped.
     temporal : TemporalWarpSettings
         Steps per video frame and the smoothing in time (refinements with
         ``frame_dt``).
@@ -187,6 +203,7 @@ class PlanSettings:
     warm_start: bool = False
     warm_rel: float = 0.01
     warm_iterations: int = 4
+    anchor_rel: float = 0.0
     temporal: TemporalWarpSettings = field(default_factory=TemporalWarpSettings)
 
 
@@ -255,12 +272,51 @@ class WarpPlanner:
         self.cols = coarse_indices(self.grid.cols, p.refine_factor)
         self.coarse_grid = Grid(cols=self.cols.size - 1, rows=self.rows.size - 1)
         self._last: _Solution | None = None
+        self._anchor: tuple[FloatArray, FloatArray] | None = None  # depth, centre's uv
         self.smoother = WarpSmoother(p.temporal)
 
     def forget(self) -> None:
-        """Drop the solution kept for warm starts and the video frames' past."""
+        """Drop the solution kept for warm starts, the last placement's anchor and the
+        video frames' past."""
         self._last = None
+        self._anchor = None
         self.smoother.reset()
+
+    def _anchored(
+        self,
+        mesh: MeshGeometry,
+        v: FloatArray,
+        content_size: tuple[int, int],
+        up: FloatArray | tuple[float, ...],
+        depth: FloatArray,
+    ) -> Placement:
+        """The content-free placement of ``v`` for the surface of lattice ``depth``:
+        kept where the last one was when that was made for the same surface (within
+        ``anchor_rel``; :func:`~adaproj_edge.warp.placement.place`), and remembered."""
+        anchor = None
+        rel = self.plan_settings.anchor_rel
+        if (
+            self._anchor is not None
+            and rel > 0
+            and surfaces_match(depth, self._anchor[0], rel, 0.5)
+        ):
+            anchor = self._anchor[1]
+        placement = place(mesh, v, content_size, np.asarray(up, dtype=np.float64), anchor=anchor)
+        self._anchor = None if placement.uv is None else (depth, placement.uv)
+        return placement
+
+    def _shown(self, surface: Surface, warp: Warp) -> Warp:
+        """``warp`` (made for ``surface``), its content's centre remembered as the next
+        placement's anchor."""
+        rows, cols = warp.image_xy.shape[:2]
+        tris = grid_triangles(rows - 1, cols - 1)
+        w, h = warp.content_size
+        centre = np.array([[0.5 * (w - 1), 0.5 * (h - 1)]])
+        q, g = warp.image_xy.reshape(-1, 2)[tris], warp.grid_uv.reshape(-1, 2)[tris]
+        uv = carry_through_triangles(q, g, centre)[0]
+        if np.all(np.isfinite(uv)):
+            self._anchor = (_surface_depth(surface), uv)
+        return warp
 
     # ------------------------------------------------------------------ steps
     def standard(self, content_size: tuple[int, int]) -> Warp:
@@ -352,11 +408,11 @@ class WarpPlanner:
         """The content-free warp of ``mesh`` (of the surface ``shown``) with positions
         ``v`` (conformal ``v_conf``), made for the ``measured`` surface (the pose cache
         matches it), ended at ``step`` of the chain after ``down``."""
-        placement = place(mesh, v, content_size, settings.up)
+        depth = _surface_depth(measured)
+        placement = self._anchored(mesh, v, content_size, settings.up, depth)
         warp = make_warp(mesh, v, placement, shown, content_size, settings, 0, 0.0)
         warp.meta.update(extra)
         warp.meta["chain"] = chain(step, down)
-        depth = _surface_depth(measured)
         up = np.asarray(settings.up, dtype=np.float64)
         cf = ContentFreeWarp(warp, depth, v_conf, v, placement, mesh.verts.copy(), mesh, up)
         return cf, mesh
@@ -371,7 +427,7 @@ class WarpPlanner:
         mesh = start.mesh
         size = start.warp.content_size
         up_p = np.asarray(up, dtype=np.float64)
-        placement = place(mesh, start.v, size, up_p)
+        placement = self._anchored(mesh, start.v, size, up_p, start.depth)
         flat = np.full((start.warp.grid_uv.shape[0] * start.warp.grid_uv.shape[1], 2), np.nan)
         flat[mesh.verts] = placement.apply(start.v)
         warp = replace(
@@ -411,9 +467,10 @@ class WarpPlanner:
         if start.step != "content-free":
             return start.warp  # a repaired mesh or a plane: nothing to refine on
         try:
-            return self._refine_on(surface, content_map, settings, start, on_step, frame_dt)
+            warp = self._refine_on(surface, content_map, settings, start, on_step, frame_dt)
         except WarpError as e:
             return _instead(start, str(e))
+        return self._shown(surface, warp)
 
     def _refine_on(
         self,

@@ -296,3 +296,22 @@ def test_centring_takes_the_plain_path(seed: int) -> None:
     want = _plain_centre(c, r, (1 - NEAR) * r, goal, tol, segments, pattern)
     assert_rounded_alike(got, want, extent)  # the same path, as the climb's
     assert got[1] >= (1 - NEAR) * r
+
+
+def test_a_kept_rectangle_stays_while_it_is_nearly_the_largest() -> None:
+    # a 4 x 1 strip: a unit square fits anywhere along x in [0.5, 3.5]
+    v, tris = grid_mesh(16, 4, 4.0, 1.0)
+    fresh = inscribed_rectangle(v, tris, 1.0)
+    assert abs(fresh.x0 + 0.5 - 2.0) < 0.01  # centred
+    kept = inscribed_rectangle(v, tris, 1.0, keep=np.array([1.0, 0.5]))
+    # kept where it was shown (the clearance there is the largest's): not re-centred
+    assert abs(kept.x0 + kept.width / 2 - 1.0) < 1e-9 and abs(kept.width - 1.0) < 0.01
+    # too near the end (half the largest): moved to the nearest centre that is within
+    # NEAR + KEEP_SLACK of it, at that size
+    least = 1.0 - rectangle.NEAR - rectangle.KEEP_SLACK
+    near_end = inscribed_rectangle(v, tris, 1.0, keep=np.array([0.25, 0.5]))
+    cx = near_end.x0 + near_end.width / 2
+    assert least - 0.01 <= near_end.width < 1.0 and abs(cx - least / 2) < 0.02, near_end
+    # outside the region: a fresh search
+    outside = inscribed_rectangle(v, tris, 1.0, keep=np.array([9.0, 0.5]))
+    assert outside == fresh

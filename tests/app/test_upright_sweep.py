@@ -1,0 +1,40 @@
+"""The content's up over a small sweep of hands, its worst seed against the simulator's
+ground truth (the hand's gravity on a wall facing the device and on one turned 35
+degrees), with the accelerometer offset the simulated calibration measured.
+
+Each case runs the runtime's IMU chain on ten simulated hands
+(:func:`~adaproj_edge.app.upright_score.trace_upright`: no depth, no warps; about a
+third of a second each) and scores the largest angle while the hand holds still. The
+target is a degree on walls (``tools/bench_handheld.py --only sweep`` runs the whole
+sweep); at 0.3 degrees of tremor and more it is not met yet (a deliberate move's
+acceleration read as gravity, ``docs/handheld.md``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from adaproj_edge.app.upright_score import trace_upright, wall_normal
+from adaproj_edge.session.hand import HandMotion
+
+SEEDS = range(10)
+SECONDS = 4.0
+YAWS = (0.0, 35.0)
+
+
+def _worst(tremor: float, roll: float) -> tuple[float, int]:
+    worst = (0.0, -1)
+    for seed in SEEDS:
+        hand = HandMotion(SECONDS, seed=seed, tremor_deg=tremor, roll_deg=roll)
+        trace = trace_upright(hand, seed)
+        for yaw in YAWS:
+            err = float(trace.error_deg(wall_normal(yaw))[trace.still].max())
+            worst = max(worst, (err, seed))
+    return worst
+
+
+@pytest.mark.parametrize(("tremor", "roll"), [(0.05, 0.0), (0.15, 30.0)])
+def test_the_worst_seed_keeps_walls_upright(tremor: float, roll: float) -> None:
+    err, seed = _worst(tremor, roll)
+    assert np.isfinite(err) and err <= 1.0, f"{err:.2f} deg at seed {seed}"
