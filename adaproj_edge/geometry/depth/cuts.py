@@ -29,6 +29,8 @@ Pure: arrays in, arrays out.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
@@ -43,8 +45,8 @@ MAX_EDGE_SAMPLES = 256  # samples along a lattice edge in the depth image, at mo
 
 
 def jump_pixels(
-    hi: NDArray[np.float32],
-    span: NDArray[np.float32],
+    hi: NDArray[Any],
+    span: NDArray[Any],
     sensor: SensorModel,
     sigmas: float,
     ray_deg: float,
