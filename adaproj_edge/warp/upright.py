@@ -12,6 +12,12 @@
   the same "away".
 - **Across a wall and a floor**: the rule of the part the content's centre lies on.
 
+The placement (:func:`~adaproj_edge.warp.placement.place`) decides the rule again
+among the triangles its rectangle lands on, and turns the content by their votes
+alone: the flattening of a messy piece (real depth: objects, curtains, a wall and
+the floor) turns "down" from place to place, and the mean over the whole piece is
+not the up where the content is.
+
 Never upside down: on a wall up is gravity's; on a floor it points away from the device.
 The content's centre is taken where it is in the projector's frame: the centre of the
 lit region (the mesh's pixel-area centroid), where the placement centres it

@@ -15,6 +15,15 @@ difference turns around, does not), and ``sigma`` the sensor's depth error there
 (:class:`~adaproj_edge.geometry.depth.sensor.SensorModel`): judged per pair from its
 depth and the baseline, not a fixed threshold.
 
+The lattice is coarse next to the depth image, and on a surface seen obliquely (a
+corridor's wall, its depth growing fast from node to node) the slope explains a
+silhouette between two nodes. The depth image does not: there the jump is sharp, or a
+"curtain" a few pixels wide that a sensor's edge smoothing makes of it, and runs
+within a few degrees of the ray, while the wall either side does not
+(:func:`jump_pixels`). A lattice edge whose segment in the depth image crosses such
+pixels, between nodes whose depths differ beyond the noise, is cut too
+(:func:`cut_at_jumps`).
+
 Before that, a node the smoothing moved by more than that noise allows gets its
 measured depth back (:func:`keep_edges`): near a silhouette a fit may reach across it
 and put the node between the two sides. At a cut between neighbours the farther
