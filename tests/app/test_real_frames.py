@@ -44,8 +44,9 @@ def _id(frame: RealFrame, region: Region) -> str:
 
 # Today's misses, with today's figure (`tools/bench_real.py --no-render`): every region
 # gets a picture, without a WarpError, and `adaproj warp` agrees; what is left is the
-# upright of content that lands off the aimed wall, the flatness of real planes (the
-# sensor's steps and the lattice's smoothing) and content across some depth jumps.
+# upright on walls the device reconstructs with shear (it follows their flatness) and
+# on a cluttered wardrobe, the flatness of real planes (the sensor's steps and the
+# lattice's smoothing), content on holes in the depth and across a few small jumps.
 XFAIL: dict[str, dict[str, str]] = {
     "test_upright": {
         "nyu_basement/wardrobe": "9.7 deg on a wall",
