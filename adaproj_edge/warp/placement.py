@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
-from adaproj_edge.geometry.rectangle import NEAR, boundary_loops, inscribed_rectangle
+from adaproj_edge.geometry.rectangle import NEAR, Rect, boundary_loops, inscribed_rectangle
 from adaproj_edge.geometry.triangles import carry_through_triangles
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.upright import upright
@@ -60,17 +60,19 @@ class Placement:
         return out
 
 
-def upright_angle(mesh: MeshGeometry, v: FloatArray, up: FloatArray) -> float:
+def upright_angle(
+    mesh: MeshGeometry, v: FloatArray, up: FloatArray, among: NDArray[np.bool_] | None = None
+) -> float:
     """Rotation that turns the surface's down direction to +y in content space.
 
     "Down" is decided by the rule of :func:`~adaproj_edge.warp.upright.upright` from
-    gravity's ``up`` (frame P): gravity on a wall, toward the device on a floor. For
-    each triangle that votes, down projected on its plane is carried into content space
-    by the triangle's affine map; the mean direction (weighted by surface area times
-    how far down lies in the plane) defines the rotation. Returns 0 when down has no
-    direction on the surface.
+    gravity's ``up`` (frame P): gravity on a wall, toward the device on a floor (among
+    the triangles ``among`` (T,) only, when given). For each triangle that votes, down
+    projected on its plane is carried into content space by the triangle's affine map;
+    the mean direction (weighted by surface area times how far down lies in the plane)
+    defines the rotation. Returns 0 when down has no direction on the surface.
     """
-    rule = upright(mesh, np.asarray(up, dtype=np.float64))
+    rule = upright(mesh, np.asarray(up, dtype=np.float64), among)
     down = -rule.up
     key = "down " + " ".join(f"{x:.17g}" for x in down)
     a, b, area, weight, ok = mesh.remember(key, lambda: _down_on_surface(mesh, down))
@@ -135,6 +137,40 @@ def _down_on_surface(
     return a, b, area, area * strength, ok
 
 
+MIN_UNDER = 8  # triangles under the content that decide its up (fewer: the whole mesh's)
+SAME_ANGLE = 1e-4  # radians: a rotation this close to the first is kept (no second search)
+
+
+def _rectangle(
+    mesh: MeshGeometry,
+    v: FloatArray,
+    angle: float,
+    aspect: float,
+    start: FloatArray | None,
+    keep: FloatArray | None = None,
+) -> Rect:
+    """The inscribed rectangle of ``aspect`` of positions ``v`` (n, 2) turned by
+    ``angle``, climbing from ``start`` (a centre) when given, kept at ``keep`` (a
+    centre) while it stays nearly the largest."""
+    vr = Placement(angle, 1.0, np.zeros(2)).apply(v)
+    loops = mesh.topology.remember("boundary loops", lambda: boundary_loops(mesh.boundary) or [])
+    return inscribed_rectangle(
+        vr, mesh.tris, aspect, boundary=mesh.boundary, start=start, near=NEAR, loops=loops,
+        keep=keep,
+    )  # fmt: skip
+
+
+def _under(mesh: MeshGeometry, vr: FloatArray, rect: Rect) -> NDArray[np.bool_]:
+    """The triangles (T,) whose centroid (of the turned positions ``vr`` (n, 2)) lies in
+    ``rect``: those the content is shown on."""
+    c = vr[mesh.tris].mean(axis=1)
+    x, y = c[:, 0], c[:, 1]
+    inside: NDArray[np.bool_] = (
+        (x >= rect.x0) & (x <= rect.x0 + rect.width) & (y >= rect.y0) & (y <= rect.y0 + rect.height)
+    )
+    return inside
+
+
 def place(
     mesh: MeshGeometry,
     v: FloatArray,
@@ -159,25 +195,37 @@ def place(
     refinement's from it); otherwise, as in a one-shot warp, each placement is centred
     afresh and the alternation's result does not depend on where it started.
     """
-    if previous is None:
-        angle = upright_angle(mesh, v, np.asarray(up, dtype=np.float64))
-        start = None
-    else:
-        angle, start = previous.angle, previous.centre
-    rot = Placement(angle, 1.0, np.zeros(2))
-    vr = rot.apply(v)
+    w, h = content_size
     corners = mesh.tris
-    keep = start if previous is not None and previous.kept else None
-    if previous is None and anchor is not None:
+    up_p = np.asarray(up, dtype=np.float64)
+
+    def anchored(angle: float) -> FloatArray | None:
+        """``anchor`` carried into the placement turned by ``angle`` (None: off it)."""
+        if anchor is None:
+            return None
+        vr = Placement(angle, 1.0, np.zeros(2)).apply(v)
         at = np.asarray(anchor, dtype=np.float64).reshape(1, 2)
         found = carry_through_triangles(mesh.uv[corners], vr[corners], at)[0]
-        keep = found if np.all(np.isfinite(found)) else None
-    w, h = content_size
-    loops = mesh.topology.remember("boundary loops", lambda: boundary_loops(mesh.boundary) or [])
-    rect = inscribed_rectangle(
-        vr, mesh.tris, w / h, boundary=mesh.boundary, start=start, near=NEAR, loops=loops,
-        keep=keep,
-    )  # fmt: skip
+        return found if np.all(np.isfinite(found)) else None
+
+    if previous is None:
+        angle = upright_angle(mesh, v, up_p)
+        keep = anchored(angle)
+        rect = _rectangle(mesh, v, angle, w / h, None, keep)
+        # the up of the part the content lands on (a piece's flattening turns "down"
+        # from place to place; the mean over all of it is not the content's)
+        under = _under(mesh, Placement(angle, 1.0, np.zeros(2)).apply(v), rect)
+        if under.sum() >= MIN_UNDER:
+            again = upright_angle(mesh, v, up_p, under)
+            if abs(np.angle(np.exp(1j * (again - angle)))) > SAME_ANGLE:
+                angle = again
+                keep = anchored(angle)
+                rect = _rectangle(mesh, v, angle, w / h, None, keep)
+    else:
+        angle = previous.angle
+        keep = previous.centre if previous.kept else None
+        rect = _rectangle(mesh, v, angle, w / h, previous.centre, keep)
+    vr = Placement(angle, 1.0, np.zeros(2)).apply(v)
     scale = w / rect.width
     # content pixel centres at integers: the rectangle's corner is pixel (-0.5, -0.5)
     offset = np.array([-0.5 - scale * rect.x0, -0.5 - scale * rect.y0])

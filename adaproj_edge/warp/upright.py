@@ -12,6 +12,12 @@
   the same "away".
 - **Across a wall and a floor**: the rule of the part the content's centre lies on.
 
+The placement (:func:`~adaproj_edge.warp.placement.place`) decides the rule again
+among the triangles its rectangle lands on, and turns the content by their votes
+alone: the flattening of a messy piece (real depth: objects, curtains, a wall and
+the floor) turns "down" from place to place, and the mean over the whole piece is
+not the up where the content is.
+
 Never upside down: on a wall up is gravity's; on a floor it points away from the device.
 The content's centre is taken where it is in the projector's frame: the centre of the
 lit region (the mesh's pixel-area centroid), where the placement centres it
@@ -60,38 +66,52 @@ class Upright:
     votes: NDArray[np.bool_] | None
 
 
-def upright(mesh: MeshGeometry, gravity_up: FloatArray) -> Upright:
+def upright(
+    mesh: MeshGeometry, gravity_up: FloatArray, among: NDArray[np.bool_] | None = None
+) -> Upright:
     """The up rule for ``mesh`` and gravity's "up" ``gravity_up`` (3,) in frame P: made
     once per gravity and kept with the mesh, so every placement of the mesh
-    (content-free, conformal, guarded, refined) is upright the same way."""
+    (content-free, conformal, guarded, refined) is upright the same way.
+
+    With ``among`` (T,) the rule is decided by, and its votes restricted to, those
+    triangles (the ones the content is placed on: a messy piece's flattening turns
+    "down" from place to place, and the content's own part decides its up)."""
     g = np.asarray(gravity_up, dtype=np.float64)
     g = g / np.linalg.norm(g)
+    if among is not None:
+        return _decide(mesh, g, among)
     key = "upright " + " ".join(f"{x:.17g}" for x in g)
     return mesh.remember(key, lambda: _decide(mesh, g))
 
 
-def _decide(mesh: MeshGeometry, g: FloatArray) -> Upright:
+def _decide(mesh: MeshGeometry, g: FloatArray, among: NDArray[np.bool_] | None = None) -> Upright:
     """:func:`upright`, made (``g`` unit)."""
     p = mesh.p
     t = mesh.tris
     n = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
     area = np.linalg.norm(n, axis=1)
     ok = np.isfinite(area) & (area > 0)
+    if among is not None:
+        ok &= among
     n = np.where(ok[:, None], n / np.where(ok, area, 1.0)[:, None], 0.0)
     level = ok & (np.abs(n @ g) > LEVEL_COS)
+    votes = None if among is None else ok
     if not level.any():
-        return Upright("wall", g, None)  # nothing level: every vote is gravity's
-    # the content's centre: the lit region's centre in the projector's frame; the
-    # triangles nearest it hold CENTRE_SHARE of the lit pixels and decide
-    uv = mesh.uv
-    centres = uv[t].mean(axis=1)
+        return Upright("wall", g, votes)  # nothing level: every vote is gravity's
     w = np.where(ok, mesh.pixel_areas, 0.0)
-    c = (centres * w[:, None]).sum(axis=0) / max(float(w.sum()), 1e-300)
-    order = np.argsort(np.sum((centres - c) ** 2, axis=1), kind="stable")
-    cum = np.cumsum(w[order])
-    near = order[: int(np.searchsorted(cum, CENTRE_SHARE * cum[-1])) + 1]
+    if among is None:
+        # the content's centre: the lit region's centre in the projector's frame; the
+        # triangles nearest it hold CENTRE_SHARE of the lit pixels and decide
+        uv = mesh.uv
+        centres = uv[t].mean(axis=1)
+        c = (centres * w[:, None]).sum(axis=0) / max(float(w.sum()), 1e-300)
+        order = np.argsort(np.sum((centres - c) ** 2, axis=1), kind="stable")
+        cum = np.cumsum(w[order])
+        near = order[: int(np.searchsorted(cum, CENTRE_SHARE * cum[-1])) + 1]
+    else:
+        near = np.flatnonzero(ok)
     if w[near][level[near]].sum() <= 0.5 * w[near].sum():
-        return Upright("wall", g, None)
+        return Upright("wall", g, votes)
     # the floor's plane: its level triangles' mean normal (by surface area), turned to
     # gravity's side
     w = np.where(ok, area, 0.0)

@@ -15,11 +15,13 @@ import pytest
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.calibration import Calibration, DepthCameraModel
-from adaproj_edge.geometry.depth.cuts import keep_aimed_piece
+from adaproj_edge.geometry.depth.cuts import cut_at_jumps, cut_lattice, keep_aimed_piece
 from adaproj_edge.geometry.depth.estimate import SurfaceEstimator
+from adaproj_edge.geometry.depth.images import clean_images
 from adaproj_edge.geometry.depth.lattice import lattice_uv
 from adaproj_edge.geometry.depth.sensor import SensorModel
 from adaproj_edge.geometry.depth.settings import DepthSettings
+from adaproj_edge.geometry.depth.workspace import Workspace
 from adaproj_edge.geometry.planes import snap_planes
 
 CAL = Calibration.default()
@@ -309,3 +311,82 @@ def test_the_aimed_piece_is_kept_unless_it_is_a_sliver_of_the_largest() -> None:
     assert kept((0, 19)).sum() == 60
     # with no share asked, the aimed piece whatever its size
     assert np.isfinite(keep_aimed_piece(s, (3, 17), min_share=0.0)).sum() == 3
+
+
+# --- a jump on a wall seen obliquely; an oblique wall without one -----------------------
+
+
+def oblique_scene(tilt_deg: float, step_m: float, edge_u: int) -> tuple[FloatArray, FloatArray]:
+    """Depth frame (h, w) of a wall turned ``tilt_deg`` from facing the camera (its depth
+    growing to the right, 2 m ahead on the axis), quantised; right of column ``edge_u``
+    a parallel wall ``step_m`` behind it (a door frame's end, a recess: the jump along
+    the ray a corridor's side wall makes at a doorway). Also the normal in frame D."""
+    t = np.radians(tilt_deg)
+    normal = np.array([np.sin(t), 0.0, -np.cos(t)])
+    rays = depth_rays()
+    near = plane_depth(rays, normal, np.array([0.0, 0.0, 2.0]))
+    far = plane_depth(rays, normal, np.array([0.0, 0.0, 2.0]) - step_m * normal)
+    z = np.where(np.arange(D.width)[None, :] < edge_u, near, far)
+    return quantised(z), normal
+
+
+def test_jump_pixels_are_silhouettes_not_an_oblique_wall() -> None:
+    """The depth image's jump pixels: along a box's silhouette (and only within 2 px of
+    it), none on a quantised wall 78 deg from facing the camera (its depth steps every
+    pixel or two)."""
+    settings = DepthSettings()
+    sensor = SensorModel.of(D)
+    z, box = box_scene(0.0)
+    jumps = clean_images(z, settings, True, Workspace(), sensor)[2]
+    assert jumps is not None
+    rays = depth_rays()
+    x, y = rays[..., 0] * box[4], rays[..., 1] * box[4]
+    px = box[4] / D.focal  # one pixel on the box's face (m)
+    inside = (x >= box[0] - 3 * px) & (x <= box[1] + 3 * px) & (np.abs(y) <= 0.2 + 3 * px)
+    core = (x >= box[0] + 3 * px) & (x <= box[1] - 3 * px) & (np.abs(y) <= 0.2 - 3 * px)
+    near_edge = inside & ~core
+    assert jumps.sum() > 0 and np.all(near_edge[jumps])
+    rows = np.flatnonzero(np.abs(y[:, 0]) < 0.15)  # every row across the box's sides
+    assert jumps[rows].any(axis=1).all()
+    z, _ = oblique_scene(78.0, 0.0, D.width)
+    jumps = clean_images(z, settings, True, Workspace(), sensor)[2]
+    assert jumps is not None and not jumps.any()
+
+
+def test_a_jump_the_lattice_slope_explains_is_cut_where_the_image_jumps() -> None:
+    """Nodes on a wall seen obliquely (0.3 m deeper at each node) and 0.6 m more across
+    one column: the lattice's own rule reads the jump as the slope; the depth image,
+    sharp there, cuts it, dropping the farther nodes only."""
+    shape = (21, 21)
+    s = 2.0 + 0.1 * np.arange(shape[1])[None, :].repeat(shape[0], axis=0)
+    s[:, 12:] += 0.6
+    sensor = SensorModel.of(D)
+    settings = DepthSettings()
+    _, blocked = cut_lattice(s, sensor, settings.jump_sigmas, 6.0)
+    assert not blocked.any()  # (a slope allowance that reads the jump as slope)
+    rays = SurfaceEstimator(CAL).rays(shape)
+    R, t = CAL.T_P_D[:3, :3], CAL.T_P_D[:3, 3]
+    uv = ((rays * s[..., None] - t) @ R) @ D.K.T
+    u_mid = 0.5 * (uv[:, 11, 0] / uv[:, 11, 2] + uv[:, 12, 0] / uv[:, 12, 2])
+    jumps = np.zeros((D.height, D.width), bool)
+    for u in np.rint(u_mid).astype(int):
+        jumps[:, u - 1 : u + 2] = True
+    got, dropped = cut_at_jumps(s, rays, CAL, jumps, sensor, settings.jump_sigmas)
+    assert dropped[:, 12].all() and dropped.sum() == shape[0]
+    assert np.isnan(got[:, 12]).all() and np.isfinite(np.delete(got, 12, axis=1)).all()
+    # no jump in the image: nothing cut
+    none = cut_at_jumps(s, rays, CAL, np.zeros_like(jumps), sensor, settings.jump_sigmas)[1]
+    assert not none.any()
+
+
+@pytest.mark.parametrize("tilt_deg", [70.0, 78.0])
+def test_a_steep_continuous_wall_seen_obliquely_is_not_cut(tilt_deg: float) -> None:
+    """The hard case for a cut: a quantised wall 70-78 deg from facing the camera (its
+    depth steps every pixel or two, nodes 10-20 cm apart in depth) is one surface: every
+    node the pipeline without cuts finds is kept."""
+    z, _ = oblique_scene(tilt_deg, 0.0, D.width)
+    shape = (21, 21)
+    cut = SurfaceEstimator(CAL).estimate(z, shape).surface.points[..., 2]
+    whole = SurfaceEstimator(CAL, DepthSettings(cut=False)).estimate(z, shape).surface.points
+    assert np.isfinite(whole[..., 2]).mean() > 0.5  # (the far end beyond 6 m)
+    assert np.array_equal(np.isfinite(cut), np.isfinite(whole[..., 2]))

@@ -20,12 +20,15 @@ def bowl() -> MeshGeometry:
     return MeshGeometry.build(simulate_surface("bowl", step=8), Grid(12, 9))
 
 
-def _by_triangle(mesh: MeshGeometry, v: np.ndarray, up: np.ndarray) -> float:
-    """Down on each triangle's plane carried to content space by the triangle's own
-    affine map (least squares over its corners), weighted by area times its length."""
+def _by_triangle(
+    mesh: MeshGeometry, v: np.ndarray, up: np.ndarray, tris: np.ndarray | None = None
+) -> float:
+    """Down on each triangle's plane (of ``tris``, by default all) carried to content
+    space by the triangle's own affine map (least squares over its corners), weighted
+    by area times its length."""
     down = -up / np.linalg.norm(up)
     total = np.zeros(2)
-    for tri in mesh.tris:
+    for tri in mesh.tris if tris is None else tris:
         p, q = mesh.p[tri], v[tri]
         e = np.stack([p[1] - p[0], p[2] - p[0]], axis=1)  # (3, 2)
         n = np.cross(e[:, 0], e[:, 1])
@@ -74,3 +77,39 @@ def test_a_placement_for_scaled_positions_is_the_placement_they_get(
     np.testing.assert_allclose(carried.apply(k * v), fresh.apply(k * v), atol=1e-6)
     assert carried.centre is not None and fresh.centre is not None
     np.testing.assert_allclose(carried.centre, fresh.centre, rtol=1e-9)
+
+
+def test_the_content_is_upright_where_it_lands_not_on_average() -> None:
+    """A flattening that turns "down" from place to place (a messy piece of real depth
+    does): the left of a wall laid out three times larger and turned 25 deg, the right
+    as it is. The content lands on the left (the largest rectangle); its up is the up
+    of the triangles it covers (checked triangle by triangle on them), not the whole
+    mesh's mean, which the right part pulls about 10 deg away."""
+    mesh = MeshGeometry.build(simulate_surface("plane", step=8), Grid(16, 8))
+    x, y = mesh.p[:, 0], mesh.p[:, 1]
+    u = (x - x.min()) / (x.max() - x.min())
+    left = 1.0 / (1.0 + np.exp((u - 0.45) / 0.03))  # 1 on the left, 0 on the right
+    turn = 0.44 * left  # 25 deg on the left
+    k = 1.0 + 2.0 * left
+    v = np.stack(
+        [k * (np.cos(turn) * x - np.sin(turn) * y), k * (np.sin(turn) * x + np.cos(turn) * y)],
+        axis=1,
+    )
+    size = (400, 300)
+    up = np.array([0.0, -1.0, 0.0])
+    placed = place(mesh, v, size, up)
+    content = placed.apply(v)
+    centres = content[mesh.tris].mean(axis=1)
+    under = (
+        (centres[:, 0] >= -0.5)
+        & (centres[:, 0] <= size[0] - 0.5)
+        & (centres[:, 1] >= -0.5)
+        & (centres[:, 1] <= size[1] - 0.5)
+    )
+    assert under.sum() > 20 and np.all(u[mesh.tris[under]].mean(axis=1) < 0.5)  # the left
+    # the triangles it covers, one by one: their mean down is the content's +y (within
+    # 1 deg: the rectangle moves a little once turned, and with it the triangles under it)
+    want = _by_triangle(mesh, v, up, mesh.tris[under])
+    assert np.cos(placed.angle - want) > np.cos(np.radians(1.0))
+    whole = upright_angle(mesh, v, up)
+    assert np.cos(placed.angle - whole) < np.cos(np.radians(5.0))

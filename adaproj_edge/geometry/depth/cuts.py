@@ -15,6 +15,15 @@ difference turns around, does not), and ``sigma`` the sensor's depth error there
 (:class:`~adaproj_edge.geometry.depth.sensor.SensorModel`): judged per pair from its
 depth and the baseline, not a fixed threshold.
 
+The lattice is coarse next to the depth image, and on a surface seen obliquely (a
+corridor's wall, its depth growing fast from node to node) the slope explains a
+silhouette between two nodes. The depth image does not: there the jump is sharp, or a
+"curtain" a few pixels wide that a sensor's edge smoothing makes of it, and runs
+within a few degrees of the ray, while the wall either side does not
+(:func:`jump_pixels`). A lattice edge whose segment in the depth image crosses such
+pixels, between nodes whose depths differ beyond the noise, is cut too
+(:func:`cut_at_jumps`).
+
 Before that, a node the smoothing moved by more than that noise allows gets its
 measured depth back (:func:`keep_edges`): near a silhouette a fit may reach across it
 and put the node between the two sides. At a cut between neighbours the farther
@@ -29,13 +38,106 @@ Pure: arrays in, arrays out.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import NDArray
 from scipy import ndimage
 
 from adaproj_edge.arrays import BoolArray, FloatArray
+from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.depth.sensor import SensorModel
+from adaproj_edge.geometry.depth.workspace import Workspace
 
 MAX_GAP = 3  # unknown nodes between a pair judged for a cut
+MAX_EDGE_SAMPLES = 256  # samples along a lattice edge in the depth image, at most
+
+
+def jump_pixels(
+    hi: NDArray[Any],
+    span: NDArray[Any],
+    sensor: SensorModel,
+    sigmas: float,
+    ray_deg: float,
+    work: Workspace,
+) -> BoolArray:
+    """The depth image's jump pixels, from the largest depth ``hi`` (h, w) and the
+    depth span ``span`` (h, w) of each pixel's 3x3 neighbourhood of valid depths: where
+    the span is more than a surface ``ray_deg`` from the ray makes it (2 pixels across,
+    ``2 hi / f`` metres sideways, take ``2 hi / (f tan(ray_deg))`` along the ray) plus
+    ``sigmas`` of the sensor's depth error at ``hi`` (its steps and noise on such a
+    surface). A silhouette's jump, and the "curtain" a sensor's edge smoothing spreads
+    it into over a few pixels, run nearly along the ray; a wall or a floor seen
+    obliquely, however steep in depth, does not.
+
+    The array returned is scratch of ``work`` (valid until its next frame)."""
+    shape = hi.shape
+    c = np.float32(sigmas * sensor.disparity_total_px / sensor.fb)
+    noise = np.multiply(hi, c, out=work.get("jnoise", shape, np.float32))
+    noise *= hi  # sigmas sigma(hi) = sigmas c hi^2
+    along = np.float32(2.0 / (sensor.focal_px * np.tan(np.radians(ray_deg))))
+    graze = np.multiply(hi, along, out=work.get("jgraze", shape, np.float32))
+    noise += graze
+    out: BoolArray = np.greater(span, noise, out=work.get("jumps", shape, np.bool_))
+    return out
+
+
+def cut_at_jumps(
+    s: FloatArray,
+    rays: FloatArray,
+    calibration: Calibration,
+    jumps: BoolArray,
+    sensor: SensorModel,
+    sigmas: float,
+) -> tuple[FloatArray, BoolArray]:
+    """``s`` (rows, cols) with the farther node of every lattice edge that crosses a
+    jump pixel (``jumps``, the depth image's (h, w), :func:`jump_pixels`) dropped, and
+    the mask of the nodes dropped.
+
+    The lattice is coarse next to the depth image: a silhouette between two nodes on a
+    wall seen obliquely, whose slope explains a large difference between them
+    (:func:`cut_lattice`), is still a sharp jump in the image. An edge (4-neighbours
+    known, points ``s * rays`` (rows, cols, 3) in frame P) is cut when its segment in
+    the depth image passes over a jump pixel strictly between its two ends and the two
+    depths differ by more than ``sigmas`` of the sensor's depth error (two nodes on the
+    same side of a silhouette, beside it, are not cut apart)."""
+    T = calibration.T_P_D
+    R, t = T[:3, :3], T[:3, 3]
+    x = (rays * s[..., None] - t) @ R  # frame D
+    K = calibration.depth.K
+    with np.errstate(invalid="ignore", divide="ignore"):
+        uv = (x @ K.T)[..., :2] / x[..., 2:3]
+    h, w = jumps.shape
+    drop = np.zeros(s.shape, bool)
+    for axis in (0, 1):
+        a = (slice(None, -1), slice(None)) if axis == 0 else (slice(None), slice(None, -1))
+        b = (slice(1, None), slice(None)) if axis == 0 else (slice(None), slice(1, None))
+        sa, sb = s[a], s[b]
+        with np.errstate(invalid="ignore"):
+            apart = np.abs(sb - sa) > sigmas * sensor.sigma_m(np.fmax(sa, sb))
+        pa, pb = uv[a][apart], uv[b][apart]
+        ok = np.isfinite(pa).all(axis=1) & np.isfinite(pb).all(axis=1)
+        if not ok.any():
+            continue
+        pa, pb = pa[ok], pb[ok]
+        n = int(min(np.ceil(np.abs(pb - pa).max()) + 1, MAX_EDGE_SAMPLES))
+        f = np.arange(1, n) / n  # strictly between the ends
+        q = pa[:, None, :] + f[None, :, None] * (pb - pa)[:, None, :]
+        u = np.rint(q[..., 0]).astype(np.int64)
+        v = np.rint(q[..., 1]).astype(np.int64)
+        inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
+        hit = np.zeros(u.shape, bool)
+        hit[inside] = jumps[v[inside], u[inside]]
+        crossed = np.zeros(sa.shape, bool)
+        idx = np.flatnonzero(apart)[ok]
+        crossed.ravel()[idx] = hit.any(axis=1)
+        r, c = np.nonzero(crossed)
+        far_b = sb[r, c] > sa[r, c]
+        if axis == 0:
+            drop[np.where(far_b, r + 1, r), c] = True
+        else:
+            drop[r, np.where(far_b, c + 1, c)] = True
+    return np.where(drop, np.nan, s), drop
 
 
 def _cuts_along_rows(

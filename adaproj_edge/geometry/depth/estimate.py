@@ -10,7 +10,13 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import BoolArray, FloatArray
 from adaproj_edge.geometry.calibration import Calibration
-from adaproj_edge.geometry.depth.cuts import aim_node, cut_lattice, keep_aimed_piece, keep_edges
+from adaproj_edge.geometry.depth.cuts import (
+    aim_node,
+    cut_at_jumps,
+    cut_lattice,
+    keep_aimed_piece,
+    keep_edges,
+)
 from adaproj_edge.geometry.depth.fits import smooth_lattice
 from adaproj_edge.geometry.depth.images import clean_images, sampled_images, smooth_images
 from adaproj_edge.geometry.depth.lattice import (
@@ -152,7 +158,9 @@ class SurfaceEstimator:
                 (cal.depth.width, cal.depth.height),
                 interpolation=cv2.INTER_NEAREST,
             ).astype(np.float64)
-        ok, z32 = clean_images(z, settings, True, work, self.sensor if settings.cut else None)
+        ok, z32, jumps = clean_images(
+            z, settings, True, work, self.sensor if settings.cut else None
+        )
         smoothed = smooth_images(ok, z32, settings.smooth_sigma_px, work)
         images = sampled_images(*smoothed, settings, work)
         p = cal.projector
@@ -179,6 +187,11 @@ class SurfaceEstimator:
         if settings.cut:
             s = keep_edges(s, raw, self.sensor, settings.jump_sigmas)
             s, blocked = cut_lattice(s, self.sensor, settings.jump_sigmas, settings.jump_slope)
+            if jumps is not None:
+                s, dropped = cut_at_jumps(
+                    s, self.rays(shape), cal, jumps, self.sensor, settings.jump_sigmas
+                )
+                blocked |= dropped
         s, filled = fill_holes(s, settings.max_hole_nodes, blocked)
         self.seen = float(np.mean(np.isfinite(s)))
         if settings.cut:

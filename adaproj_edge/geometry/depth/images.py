@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import BoolArray, FloatArray
+from adaproj_edge.geometry.depth.cuts import jump_pixels
 from adaproj_edge.geometry.depth.sensor import SensorModel
 from adaproj_edge.geometry.depth.settings import DepthSettings
 from adaproj_edge.geometry.depth.workspace import Workspace
@@ -83,9 +84,11 @@ def clean_images(
     positive: bool,
     work: Workspace,
     sensor: SensorModel | None = None,
-) -> tuple[BoolArray, NDArray[np.float32]]:
+) -> tuple[BoolArray, NDArray[np.float32], BoolArray | None]:
     """Step 1 in scratch: mask of the pixels :func:`clean_depth` keeps (and, if
-    ``positive``, z > 0), and the float32 depth where in range, 0 elsewhere.
+    ``positive``, z > 0), the float32 depth where in range, 0 elsewhere, and (given a
+    ``sensor``) the jump pixels (:func:`~adaproj_edge.geometry.depth.cuts.jump_pixels`;
+    else None).
 
     Given the ``sensor``'s noise model, the pixels on either side of a depth jump are
     dropped too (flying pixels, and the pixels the smoothing would mix across it): those
@@ -112,9 +115,10 @@ def clean_images(
         np.abs(dev, out=dev)
         np.multiply(z, settings.speckle_rel, out=lim)
         ok &= np.less_equal(dev, lim, out=tmp)
+        jumps = None
         if sensor is not None:
-            _drop_jumps(ok, z32, settings, sensor, work)
-    return ok, z32
+            jumps = _drop_jumps(ok, z32, settings, sensor, work)
+    return ok, z32, jumps
 
 
 def _drop_jumps(
@@ -123,8 +127,10 @@ def _drop_jumps(
     settings: DepthSettings,
     sensor: SensorModel,
     work: Workspace,
-) -> None:
-    """Clear ``ok`` where the 3x3 neighbourhood of kept depths spans a jump."""
+) -> BoolArray:
+    """Clear ``ok`` where the 3x3 neighbourhood of kept depths spans a jump; returns
+    the jump pixels of :func:`~adaproj_edge.geometry.depth.cuts.jump_pixels` (judged
+    on the same neighbourhoods)."""
     shape = ok.shape
     zk = np.multiply(z32, ok, out=work.get("zk", shape, np.float32))
     hi = cv2.dilate(zk, _KERNEL, dst=work.get("hi", shape, np.float32))
@@ -136,7 +142,9 @@ def _drop_jumps(
     lim += np.float32(settings.speckle_rel)
     lim *= hi
     np.subtract(hi, lo, out=zk)
+    jumps = jump_pixels(hi, zk, sensor, settings.flying_sigmas, settings.jump_ray_deg, work)
     ok &= np.less_equal(zk, lim, out=work.get("tmp", shape, np.bool_))
+    return jumps
 
 
 def smooth_images(

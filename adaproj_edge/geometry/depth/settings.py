@@ -16,7 +16,10 @@ class DepthSettings:
     how many of its depth errors (sigma(z), beyond what the surface's slope explains)
     make a depth jump between neighbouring lattice nodes a silhouette
     (:mod:`~adaproj_edge.geometry.depth.cuts`), ``flying_sigmas`` the same for a pixel
-    lying between the two sides of a jump in the depth image; ``cut`` = False keeps
+    lying between the two sides of a jump in the depth image; ``jump_ray_deg`` how
+    close to the ray a depth image's neighbourhood must run (beyond that noise) to be a
+    jump between the lattice's nodes (a silhouette, or the curtain of edge smoothing
+    beside it, however steep the surface either side); ``cut`` = False keeps
     every piece of the lattice and the pixels at jumps (the pipeline without cuts).
     """
 
@@ -24,6 +27,7 @@ class DepthSettings:
     step_floor: float = 0.25
     jump_sigmas: float = 6.0
     jump_slope: float = 2.0
+    jump_ray_deg: float = 5.0
     flying_sigmas: float = 4.0
     cut: bool = True
     min_depth_m: float = 0.35
