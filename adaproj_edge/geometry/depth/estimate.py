@@ -179,7 +179,9 @@ class SurfaceEstimator:
         if settings.cut:
             s = keep_edges(s, raw, self.sensor, settings.jump_sigmas)
             s, blocked = cut_lattice(s, self.sensor, settings.jump_sigmas, settings.jump_slope)
-        s, filled = fill_holes(s, settings.max_hole_nodes, blocked)
+        s, filled = fill_holes(
+            s, settings.max_hole_nodes, blocked, self.sensor if settings.cut else None, settings
+        )
         self.seen = float(np.mean(np.isfinite(s)))
         if settings.cut:
             K = p.K

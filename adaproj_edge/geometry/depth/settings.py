@@ -18,6 +18,14 @@ class DepthSettings:
     (:mod:`~adaproj_edge.geometry.depth.cuts`), ``flying_sigmas`` the same for a pixel
     lying between the two sides of a jump in the depth image; ``cut`` = False keeps
     every piece of the lattice and the pixels at jumps (the pipeline without cuts).
+
+    Holes in the lattice of at most ``max_hole_nodes`` nodes inside the frame are
+    filled from their neighbours; with ``cut``, a larger one (up to
+    ``max_fit_hole_share`` of the lattice) or one at the frame's border is filled from
+    a smooth surface fitted to the known nodes within ``ring_nodes`` of it, when their
+    RMS distance to it is within ``ring_sigmas`` of the sensor's error (and each
+    within ``jump_sigmas``); at the border only ``border_fill_nodes`` deep
+    (:func:`~adaproj_edge.geometry.depth.lattice.fill_from_ring`).
     """
 
     sensor: str = "oak-d"
@@ -33,6 +41,10 @@ class DepthSettings:
     min_support: float = 0.35
     iterations: int = 8
     max_hole_nodes: int = 16
+    max_fit_hole_share: float = 0.25
+    ring_nodes: int = 2
+    ring_sigmas: float = 1.5
+    border_fill_nodes: int = 3
     disparity_sigma_px: float = 0.1
     sigma_ref_m: float = 0.02
     spike_rel: float = 0.02
