@@ -170,9 +170,11 @@ def fill_from_ring(
     degrees = (1,) if at_border else (1, 2)
     for degree in degrees:
         a = _design(rr / scale, cc / scale, degree)
-        if a.shape[0] < 2 * a.shape[1] or np.linalg.matrix_rank(a) < a.shape[1]:
-            break  # too few nodes, or along one line: no surface to speak of
-        coef, *_ = np.linalg.lstsq(a, inv, rcond=None)
+        if a.shape[0] < 2 * a.shape[1]:
+            break  # too few nodes
+        coef, _, rank, _ = np.linalg.lstsq(a, inv, rcond=None)
+        if rank < a.shape[1]:
+            break  # the ring along one line: no surface to speak of
         with np.errstate(divide="ignore", invalid="ignore"):
             off = np.abs(z - 1.0 / (a @ coef)) / tol
         if not np.all(np.isfinite(off)):
