@@ -180,7 +180,12 @@ class SurfaceEstimator:
             s = keep_edges(s, raw, self.sensor, settings.jump_sigmas)
             s, blocked = cut_lattice(s, self.sensor, settings.jump_sigmas, settings.jump_slope)
         s, filled = fill_holes(
-            s, settings.max_hole_nodes, blocked, self.sensor if settings.cut else None, settings
+            s,
+            settings.max_hole_nodes,
+            blocked,
+            self.sensor if settings.cut else None,
+            settings,
+            node_spacing_m(p, shape, 1.0),
         )
         self.seen = float(np.mean(np.isfinite(s)))
         if settings.cut:

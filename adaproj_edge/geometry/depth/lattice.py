@@ -67,6 +67,7 @@ def fill_holes(
     blocked: BoolArray | None = None,
     sensor: SensorModel | None = None,
     settings: DepthSettings | None = None,
+    node_angle: float | None = None,
 ) -> tuple[FloatArray, BoolArray]:
     """Fill NaN regions (holes: 4-connected) of the lattice ``s`` (rows, cols).
 
@@ -75,8 +76,9 @@ def fill_holes(
     a harmonic fill (each filled node the mean of its neighbours). With a ``sensor``,
     a larger one, or one at the border, not touching a ``blocked`` node, is filled
     from a smooth surface fitted to the known nodes around it when that ring is one
-    surface within the sensor's error (:func:`fill_from_ring`); a doorway, a window or
-    an object's edge stays a hole.
+    surface within the sensor's error (:func:`fill_from_ring`; ``node_angle`` is the
+    angle between neighbouring lattice rays, rad); a doorway, a window or an object's
+    edge stays a hole.
 
     Returns the filled lattice and the mask of filled nodes.
     """
@@ -123,7 +125,7 @@ def fill_holes(
             slice(max(box[1].start - pad, 0), min(box[1].stop + pad, cols)),
         )
         region = labels[win] == label
-        got = fill_from_ring(s[win], region, sensor, settings, bool(at_border[label]))
+        got = fill_from_ring(s[win], region, sensor, settings, bool(at_border[label]), node_angle)
         if got is not None:
             if out is s:
                 out = s.copy()
@@ -140,6 +142,7 @@ def fill_from_ring(
     sensor: SensorModel,
     settings: DepthSettings,
     at_border: bool,
+    node_angle: float | None = None,
 ) -> FloatArray | None:
     """Depths (rows, cols) for the hole ``region`` of ``s`` (NaN elsewhere and where
     left open) from a smooth surface fitted to its ring, or None when the ring is not
@@ -151,9 +154,12 @@ def fill_from_ring(
     surface. A fit is accepted when the ring's depths lie within the sensor's error of
     it: RMS within ``ring_sigmas`` and every node within ``jump_sigmas`` of
     ``sigma(z) + step(z) + bias(z)`` (the residual of a smoothed lattice on one
-    surface; a silhouette's ring is off by the jump). A hole inside the frame is filled
-    whole; one at the frame's border only within ``border_fill_nodes`` of its ring (the
-    fit is not trusted far into an unknown void).
+    surface; a silhouette's ring is off by the jump). Nor is a fit accepted that is
+    seen within ``90 - fill_max_incidence_deg`` degrees of grazing at a node it fills
+    (``node_angle`` given): a small error of the fit is a large one along the ray
+    there, and such a hole is often the band beside a silhouette. A hole inside the
+    frame is filled whole; one at the frame's border only within ``border_fill_nodes``
+    of its ring (the fit is not trusted far into an unknown void).
     """
     known = np.isfinite(s)
     ring = ndimage.binary_dilation(region, iterations=settings.ring_nodes) & known
@@ -189,6 +195,13 @@ def fill_from_ring(
             continue
         if not at_border and (zh.min() < lo - span or zh.max() > hi + span):
             continue  # a fit that bulges between its ring's nodes
+        if node_angle is not None:
+            # inverse depth's gradient per node over inverse depth, per ray angle: about
+            # the tangent of the angle of incidence
+            gr, gc = _gradient(hr / scale, hc / scale, degree, coef)
+            tan = np.hypot(gr, gc) / scale * zh / node_angle
+            if tan.max() > np.tan(np.radians(settings.fill_max_incidence_deg)):
+                continue
         out = np.full(s.shape, np.nan)
         out[hr, hc] = zh
         if at_border:
@@ -198,6 +211,15 @@ def fill_from_ring(
             out[~z_ok] = np.nan
         return out
     return None
+
+
+def _gradient(
+    r: FloatArray, c: FloatArray, degree: int, coef: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The derivatives (d/dr, d/dc) of the polynomial ``coef`` of :func:`_design`."""
+    if degree == 1:
+        return np.full_like(r, coef[1]), np.full_like(c, coef[2])
+    return coef[1] + 2 * coef[3] * r + coef[4] * c, coef[2] + coef[4] * r + 2 * coef[5] * c
 
 
 def _design(r: FloatArray, c: FloatArray, degree: int) -> FloatArray:
