@@ -90,10 +90,10 @@ def test_a_border_hole_is_filled_only_a_few_nodes_deep() -> None:
 
 
 def test_a_hole_across_a_depth_step_stays_open() -> None:
-    # a box's face (1.7 m) in front of a wall (2.0 m), the hole across its edge, wider
+    # a box's face (1.85 m) in front of a wall (2.0 m), the hole across its edge, wider
     # than the gap the cut rule looks across
     s = quantised(plane_depth((0.0, 0.0, 1.0), 2.0))
-    s[:, :10] = quantised(plane_depth((0.0, 0.0, 1.0), 1.7))[:, :10]
+    s[:, :10] = quantised(plane_depth((0.0, 0.0, 1.0), 1.85))[:, :10]
     s[6:14, 7:13] = np.nan
     out, filled = fill(s)
     assert not filled.any() and np.isnan(out[6:14, 7:13]).all()

@@ -152,14 +152,16 @@ def fill_from_ring(
     rays (z = 1, evenly spaced) a plane's inverse depth is affine in the node's (row,
     col): that is fitted first, then (inside the frame only) a quadric, for a curved
     surface. A fit is accepted when the ring's depths lie within the sensor's error of
-    it: RMS within ``ring_sigmas`` and every node within ``jump_sigmas`` of
+    it: RMS within ``ring_sigmas`` and every node within twice that of
     ``sigma(z) + step(z) + bias(z)`` (the residual of a smoothed lattice on one
-    surface; a silhouette's ring is off by the jump). Nor is a fit accepted that is
-    seen within ``90 - fill_max_incidence_deg`` degrees of grazing at a node it fills
-    (``node_angle`` given): a small error of the fit is a large one along the ray
-    there, and such a hole is often the band beside a silhouette. A hole inside the
-    frame is filled whole; one at the frame's border only within ``border_fill_nodes``
-    of its ring (the fit is not trusted far into an unknown void).
+    surface; a silhouette's ring is off by the jump: at 2 m a step of 0.15 m across a
+    hole is refused, one of 0.1 m, which a ring on three sides takes for a slope, not).
+    Nor is a fit accepted that is seen within ``90 - fill_max_incidence_deg`` degrees
+    of grazing at a node it fills (``node_angle`` given): a small error of the fit is
+    a large one along the ray there, and such a hole is often the band beside a
+    silhouette. A hole inside the frame is filled whole; one at the frame's border
+    only within ``border_fill_nodes`` of its ring (the fit is not trusted far into an
+    unknown void).
     """
     known = np.isfinite(s)
     ring = ndimage.binary_dilation(region, iterations=settings.ring_nodes) & known
@@ -185,7 +187,7 @@ def fill_from_ring(
             off = np.abs(z - 1.0 / (a @ coef)) / tol
         if not np.all(np.isfinite(off)):
             continue
-        if np.sqrt(np.mean(off**2)) > settings.ring_sigmas or off.max() > settings.jump_sigmas:
+        if np.sqrt(np.mean(off**2)) > settings.ring_sigmas or off.max() > 2 * settings.ring_sigmas:
             continue
         with np.errstate(divide="ignore"):
             zh = 1.0 / (_design(hr / scale, hc / scale, degree) @ coef)

@@ -24,7 +24,7 @@ class DepthSettings:
     ``max_fit_hole_share`` of the lattice) or one at the frame's border is filled from
     a smooth surface fitted to the known nodes within ``ring_nodes`` of it, when their
     RMS distance to it is within ``ring_sigmas`` of the sensor's error (and each
-    within ``jump_sigmas``), unless it is seen at more than ``fill_max_incidence_deg``
+    within twice that), unless it is seen at more than ``fill_max_incidence_deg``
     from the surface's normal; at the border only ``border_fill_nodes`` deep
     (:func:`~adaproj_edge.geometry.depth.lattice.fill_from_ring`).
     """
@@ -44,7 +44,7 @@ class DepthSettings:
     max_hole_nodes: int = 16
     max_fit_hole_share: float = 0.25
     ring_nodes: int = 2
-    ring_sigmas: float = 1.5
+    ring_sigmas: float = 1.0
     border_fill_nodes: int = 3
     fill_max_incidence_deg: float = 75.0
     disparity_sigma_px: float = 0.1
