@@ -69,12 +69,6 @@ def test_a_recorded_push_switches_the_content_at_the_push(
     assert link["refused"] == 0
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the sensor's holes on untextured patches are left out of the surface and the "
-    "picture shrinks to about half its area (frame mean 64 instead of 105 before the "
-    "push), so the frames before and after differ by 15 instead of 40",
-)
 def test_the_frames_after_the_push_show_the_new_content(
     pushed: tuple[dict[str, Any], Path],
 ) -> None:

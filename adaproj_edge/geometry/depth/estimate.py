@@ -192,7 +192,14 @@ class SurfaceEstimator:
                     s, self.rays(shape), cal, jumps, self.sensor, settings.jump_sigmas
                 )
                 blocked |= dropped
-        s, filled = fill_holes(s, settings.max_hole_nodes, blocked)
+        s, filled = fill_holes(
+            s,
+            settings.max_hole_nodes,
+            blocked,
+            self.sensor if settings.cut else None,
+            settings,
+            node_spacing_m(p, shape, 1.0),
+        )
         self.seen = float(np.mean(np.isfinite(s)))
         if settings.cut:
             K = p.K

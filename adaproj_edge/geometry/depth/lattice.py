@@ -9,6 +9,7 @@ from scipy import ndimage
 
 from adaproj_edge.arrays import BoolArray, FloatArray
 from adaproj_edge.geometry.calibration import Calibration
+from adaproj_edge.geometry.depth.sensor import SensorModel
 from adaproj_edge.geometry.depth.settings import DepthSettings
 from adaproj_edge.geometry.projector import Projector
 
@@ -61,13 +62,25 @@ def reject_spikes(s: FloatArray, rel: float) -> FloatArray:
 
 
 def fill_holes(
-    s: FloatArray, max_nodes: int, blocked: BoolArray | None = None
+    s: FloatArray,
+    max_nodes: int,
+    blocked: BoolArray | None = None,
+    sensor: SensorModel | None = None,
+    settings: DepthSettings | None = None,
+    node_angle: float | None = None,
 ) -> tuple[FloatArray, BoolArray]:
-    """Fill NaN regions of at most ``max_nodes`` nodes that do not touch the border
-    (nor a ``blocked`` node: a silhouette's, see :mod:`~adaproj_edge.geometry.depth.cuts`).
+    """Fill NaN regions (holes: 4-connected) of the lattice ``s`` (rows, cols).
 
-    Harmonic fill (each filled node the mean of its neighbours). Returns the filled
-    lattice and the mask of filled nodes.
+    A hole of at most ``max_nodes`` nodes that touches neither the border nor a
+    ``blocked`` node (a silhouette's, see :mod:`~adaproj_edge.geometry.depth.cuts`) gets
+    a harmonic fill (each filled node the mean of its neighbours). With a ``sensor``,
+    a larger one, or one at the border, not touching a ``blocked`` node, is filled
+    from a smooth surface fitted to the known nodes around it when that ring is one
+    surface within the sensor's error (:func:`fill_from_ring`; ``node_angle`` is the
+    angle between neighbouring lattice rays, rad); a doorway, a window or an object's
+    edge stays a hole.
+
+    Returns the filled lattice and the mask of filled nodes.
     """
     hole = ~np.isfinite(s)
     labels, n = ndimage.label(hole)
@@ -75,25 +88,148 @@ def fill_holes(
         return s, np.zeros_like(hole)
     sizes = np.bincount(labels.ravel())
     border = np.unique(np.r_[labels[0], labels[-1], labels[:, 0], labels[:, -1]])
-    small = sizes <= max_nodes
-    small[0] = False
-    small[border] = False
+    free = np.ones(n + 1, bool)
+    free[0] = False
     if blocked is not None:
-        small[np.unique(labels[blocked])] = False
+        free[np.unique(labels[blocked])] = False
+    small = free & (sizes <= max_nodes)
+    small[border] = False
     fill = small[labels]
-    if not fill.any():
-        return s, fill
-    out = np.where(fill, np.nanmean(s), s)
-    # Jacobi steps on the filled nodes alone: none is on the border, and their four
-    # neighbours (above, below, left, right) are known or filled (a hole is a whole
-    # 4-connected NaN region), so each becomes the plain mean of the four
-    at = np.flatnonzero(fill)
-    cols = s.shape[1]
-    around = np.stack([at - cols, at + cols, at - 1, at + 1])
-    flat = out.reshape(-1)
-    for _ in range(4 * max_nodes + 20):
-        flat[at] = flat[around].sum(axis=0) / 4
+    out = s
+    if fill.any():
+        out = np.where(fill, np.nanmean(s), s)
+        # Jacobi steps on the filled nodes alone: none is on the border, and their four
+        # neighbours (above, below, left, right) are known or filled (a hole is a whole
+        # 4-connected NaN region), so each becomes the plain mean of the four
+        at = np.flatnonzero(fill)
+        cols = s.shape[1]
+        around = np.stack([at - cols, at + cols, at - 1, at + 1])
+        flat = out.reshape(-1)
+        for _ in range(4 * max_nodes + 20):
+            flat[at] = flat[around].sum(axis=0) / 4
+    if sensor is None:
+        return out, fill
+    settings = settings or DepthSettings()
+    cap = settings.max_fit_hole_share * s.size
+    at_border = np.zeros(n + 1, bool)
+    at_border[border] = True
+    boxes = ndimage.find_objects(labels)
+    pad = settings.ring_nodes + settings.border_fill_nodes + 1
+    rows, cols = s.shape
+    # inside the frame up to a cap; at the border any size (filled only a few nodes deep)
+    for label in np.flatnonzero(free & ~small & ((sizes <= cap) | at_border)):
+        box = boxes[label - 1]
+        assert box is not None
+        win = (
+            slice(max(box[0].start - pad, 0), min(box[0].stop + pad, rows)),
+            slice(max(box[1].start - pad, 0), min(box[1].stop + pad, cols)),
+        )
+        region = labels[win] == label
+        got = fill_from_ring(s[win], region, sensor, settings, bool(at_border[label]), node_angle)
+        if got is not None:
+            if out is s:
+                out = s.copy()
+            done = np.zeros_like(fill)
+            done[win] = np.isfinite(got)
+            out[done] = got[np.isfinite(got)]
+            fill |= done
     return out, fill
+
+
+def fill_from_ring(
+    s: FloatArray,
+    region: BoolArray,
+    sensor: SensorModel,
+    settings: DepthSettings,
+    at_border: bool,
+    node_angle: float | None = None,
+) -> FloatArray | None:
+    """Depths (rows, cols) for the hole ``region`` of ``s`` (NaN elsewhere and where
+    left open) from a smooth surface fitted to its ring, or None when the ring is not
+    one surface.
+
+    The ring is the known nodes within ``ring_nodes`` of the hole. Along the lattice's
+    rays (z = 1, evenly spaced) a plane's inverse depth is affine in the node's (row,
+    col): that is fitted first, then (inside the frame only) a quadric, for a curved
+    surface. A fit is accepted when the ring's depths lie within the sensor's error of
+    it: RMS within ``ring_sigmas`` and every node within twice that of
+    ``sigma(z) + step(z) + bias(z)`` (the residual of a smoothed lattice on one
+    surface; a silhouette's ring is off by the jump: at 2 m a step of 0.15 m across a
+    hole is refused, one of 0.1 m, which a ring on three sides takes for a slope, not).
+    Nor is a fit accepted that is seen within ``90 - fill_max_incidence_deg`` degrees
+    of grazing at a node it fills (``node_angle`` given): a small error of the fit is
+    a large one along the ray there, and such a hole is often the band beside a
+    silhouette. A hole inside the frame is filled whole; one at the frame's border
+    only within ``border_fill_nodes`` of its ring (the fit is not trusted far into an
+    unknown void).
+    """
+    known = np.isfinite(s)
+    ring = ndimage.binary_dilation(region, iterations=settings.ring_nodes) & known
+    if not (ring & ndimage.binary_dilation(region)).any():
+        return None
+    rr, cc = np.nonzero(ring)
+    if rr.size < 8:
+        return None
+    z = s[ring]
+    inv = 1.0 / z
+    tol = sensor.sigma_m(z) + sensor.step_m(z) + sensor.bias_m(z)
+    hr, hc = np.nonzero(region)
+    scale = float(max(s.shape))
+    degrees = (1,) if at_border else (1, 2)
+    for degree in degrees:
+        a = _design(rr / scale, cc / scale, degree)
+        if a.shape[0] < 2 * a.shape[1]:
+            break  # too few nodes
+        coef, _, rank, _ = np.linalg.lstsq(a, inv, rcond=None)
+        if rank < a.shape[1]:
+            break  # the ring along one line: no surface to speak of
+        with np.errstate(divide="ignore", invalid="ignore"):
+            off = np.abs(z - 1.0 / (a @ coef)) / tol
+        if not np.all(np.isfinite(off)):
+            continue
+        if np.sqrt(np.mean(off**2)) > settings.ring_sigmas or off.max() > 2 * settings.ring_sigmas:
+            continue
+        with np.errstate(divide="ignore"):
+            zh = 1.0 / (_design(hr / scale, hc / scale, degree) @ coef)
+        lo, hi = z.min(), z.max()
+        span = hi - lo
+        if not np.all(np.isfinite(zh)) or np.any(zh <= 0):
+            continue
+        if not at_border and (zh.min() < lo - span or zh.max() > hi + span):
+            continue  # a fit that bulges between its ring's nodes
+        if node_angle is not None:
+            # inverse depth's gradient per node over inverse depth, per ray angle: about
+            # the tangent of the angle of incidence
+            gr, gc = _gradient(hr / scale, hc / scale, degree, coef)
+            tan = np.hypot(gr, gc) / scale * zh / node_angle
+            if tan.max() > np.tan(np.radians(settings.fill_max_incidence_deg)):
+                continue
+        out = np.full(s.shape, np.nan)
+        out[hr, hc] = zh
+        if at_border:
+            far = ndimage.distance_transform_cdt(~known, metric="chessboard")
+            out[far > settings.border_fill_nodes] = np.nan
+            z_ok = (settings.min_depth_m <= out) & (out <= settings.max_depth_m)
+            out[~z_ok] = np.nan
+        return out
+    return None
+
+
+def _gradient(
+    r: FloatArray, c: FloatArray, degree: int, coef: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The derivatives (d/dr, d/dc) of the polynomial ``coef`` of :func:`_design`."""
+    if degree == 1:
+        return np.full_like(r, coef[1]), np.full_like(c, coef[2])
+    return coef[1] + 2 * coef[3] * r + coef[4] * c, coef[2] + coef[4] * r + 2 * coef[5] * c
+
+
+def _design(r: FloatArray, c: FloatArray, degree: int) -> FloatArray:
+    """Columns of a polynomial of ``degree`` (1 or 2) in (r, c)."""
+    one = np.ones_like(r)
+    if degree == 1:
+        return np.stack([one, r, c], axis=1)
+    return np.stack([one, r, c, r * r, r * c, c * c], axis=1)
 
 
 def node_confidence(

@@ -21,6 +21,15 @@ class DepthSettings:
     jump between the lattice's nodes (a silhouette, or the curtain of edge smoothing
     beside it, however steep the surface either side); ``cut`` = False keeps
     every piece of the lattice and the pixels at jumps (the pipeline without cuts).
+
+    Holes in the lattice of at most ``max_hole_nodes`` nodes inside the frame are
+    filled from their neighbours; with ``cut``, a larger one (up to
+    ``max_fit_hole_share`` of the lattice) or one at the frame's border is filled from
+    a smooth surface fitted to the known nodes within ``ring_nodes`` of it, when their
+    RMS distance to it is within ``ring_sigmas`` of the sensor's error (and each
+    within twice that), unless it is seen at more than ``fill_max_incidence_deg``
+    from the surface's normal; at the border only ``border_fill_nodes`` deep
+    (:func:`~adaproj_edge.geometry.depth.lattice.fill_from_ring`).
     """
 
     sensor: str = "oak-d"
@@ -37,6 +46,11 @@ class DepthSettings:
     min_support: float = 0.35
     iterations: int = 8
     max_hole_nodes: int = 16
+    max_fit_hole_share: float = 0.25
+    ring_nodes: int = 2
+    ring_sigmas: float = 1.0
+    border_fill_nodes: int = 3
+    fill_max_incidence_deg: float = 75.0
     disparity_sigma_px: float = 0.1
     sigma_ref_m: float = 0.02
     spike_rel: float = 0.02
