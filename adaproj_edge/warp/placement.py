@@ -16,6 +16,7 @@ pixels between consecutive depth frames.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -138,7 +139,7 @@ def _down_on_surface(
 
 
 MIN_UNDER = 8  # triangles under the content that decide its up (fewer: the whole mesh's)
-SAME_ANGLE = 1e-4  # radians: a rotation this close to the first is kept (no second search)
+SAME_ANGLE = math.radians(1.0)  # a rotation this close to the first is kept (no second search)
 
 
 def _rectangle(

@@ -53,21 +53,20 @@ def _id(frame: RealFrame, region: Region) -> str:
 # 0.5-3 deg: 0.02-0.16 of angle at 60-73 deg).
 XFAIL: dict[str, dict[str, str]] = {
     "test_upright": {
-        "nyu_basement/wardrobe": "9.7 deg on a wall",
-        "nyu_basement/room-beyond": "2.2 deg on a wall",
-        "sun3d_corridor/wall": "2.6 deg on a wall (its angle distortion 0.31)",
-        "sun3d_corridor/cubicles": "7.1 deg on a wall",
+        "nyu_basement/wardrobe": "11.1 deg on a wall",
+        "nyu_basement/wall-floor": "2.1 deg on a wall",
+        "sun3d_corridor/cubicles": "6.9 deg on a wall",
     },
     "test_planar_distortion": {
-        "nyu_basement/floor": "angle 0.042, size 0.109",
-        "sun3d_corridor/floor": "angle 0.389, size 0.022",
-        "sun3d_corridor/wall": "angle 0.356, size 0.019",
-        "tum_desk/partition": "angle 0.020, size 0.144",
-        "tum_desk/floor": "angle 0.018, size 0.031",
+        "nyu_basement/floor": "angle 0.024, size 0.084",
+        "sun3d_corridor/floor": "angle 0.102, size 0.010",
+        "sun3d_corridor/wall": "angle 0.290, size 0.013",
+        "tum_desk/partition": "angle 0.020, size 0.143",
+        "tum_desk/floor": "angle 0.020, size 0.029",
     },
     "test_off_depth_jumps": {
-        "nyu_basement/wardrobe": "0.5 % bridging, 6.4 % on nothing",
-        "nyu_basement/room-beyond": "1.2 % bridging",
+        "nyu_basement/wardrobe": "0.7 % bridging, 6.4 % on nothing",
+        "nyu_basement/room-beyond": "1.3 % bridging",
         "sun3d_corridor/corridor": "1.3 % bridging (specks on a wall seen grazing)",
     },
 }
