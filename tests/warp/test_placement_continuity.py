@@ -27,6 +27,7 @@ from adaproj_edge.render.content_points import frame_pixels
 from adaproj_edge.session.hand import HandMotion
 from adaproj_edge.session.reader import read_session
 from adaproj_edge.session.simulator import Scene, SimulationSettings, simulate_session
+from adaproj_edge.session.stereo import StereoNoise
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import WarpCache
 from adaproj_edge.warp.planner import PlanSettings, WarpPlanner
@@ -54,16 +55,29 @@ def _centres(path: Path, hand: HandMotion) -> np.ndarray:
     return np.array(out)
 
 
-@pytest.mark.parametrize(("seed", "roll"), [(0, 12.0), (1, 0.0)])
+OAK_D_SLIT = pytest.mark.xfail(
+    strict=True,
+    reason="on OAK-D-like depth the lattice cut leaves a slit of blocked nodes down the "
+    "corner's crease beside a hole (the cut's slope test reads an unknown neighbour pair "
+    "as flat), and the content jumps 43 px along the ridge when it opens or closes",
+)
+
+
+@pytest.mark.parametrize(
+    ("seed", "roll", "sensor"),
+    [(0, 12.0, "smooth"), (1, 0.0, "smooth"), pytest.param(1, 0.0, "oak-d", marks=OAK_D_SLIT)],
+)
 def test_the_corners_content_does_not_jump_between_estimates(
-    tmp_path: Path, seed: int, roll: float
+    tmp_path: Path, seed: int, roll: float, sensor: str
 ) -> None:
     hand = HandMotion(
         SECONDS, seed=seed, tremor_deg=0.0, sway_deg=0.0, move_rad=0.0, move_m=0.0,
         roll_deg=roll,
     )  # fmt: skip
     path = tmp_path / "corner.mcap"
-    settings = SimulationSettings(seconds=SECONDS, seed=seed, motion=hand)
+    settings = SimulationSettings(
+        seconds=SECONDS, seed=seed, motion=hand, stereo=StereoNoise.named(sensor)
+    )
     simulate_session(Scene.load("corner"), path, Calibration.default(), settings)
     centres = _centres(path, hand)
     assert np.all(np.isfinite(centres))
