@@ -116,8 +116,10 @@ class GainMap:
 
     Attributes
     ----------
-    light : (h, w) float32 array
-        The gain of light (<= 1) at 1/``scale`` of the frame; 1 where no surface.
+    light : (h, w) or (h, w, 3) float32 array
+        The gain of light (<= 1) at 1/``scale`` of the frame; 1 where no surface. Three
+        channels (blue, green, red): a gain per primary
+        (:func:`adaproj_edge.render.reflectance.colour_gain`).
     size : (width, height)
         The frame's size.
     gamma : float
@@ -151,7 +153,12 @@ class GainMap:
             big = cv2.resize(self.light, (w, h), interpolation=cv2.INTER_LINEAR)
             factor = np.power(np.clip(big, 0.0, 1.0), 1.0 / self.gamma)
             one = np.rint(255.0 * factor).astype(np.uint8)
-            got = one if channels == 1 else np.repeat(one[..., None], channels, axis=2)
+            if one.ndim == 3:
+                if channels != one.shape[2]:
+                    raise InputError(f"a colour gain does not fit a {channels}-channel frame")
+                got = one
+            else:
+                got = one if channels == 1 else np.repeat(one[..., None], channels, axis=2)
             self._pixels[channels] = got
         return got
 

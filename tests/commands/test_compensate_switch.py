@@ -66,3 +66,39 @@ def test_simulate_with_compensate_writes_the_picture(tmp_path: Path) -> None:
     )
     pic = cv2.imread(str(out))
     assert pic.shape[1] > 4 * pic.shape[0]  # input | standard | corrected | compensated
+
+
+def test_simulate_on_a_coloured_surface_in_a_lit_room(
+    files: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--albedo`` and ``--ambient``: the projections as seen on the surface's colour
+    with the room's light; with ``--compensate`` the colour is measured from simulated
+    captures and said so; bad input is one line and exit 2, before any work."""
+    out = files / "sim.png"
+    albedo = files / "albedo.png"
+    tile = np.array([[[120, 170, 230], [60, 85, 115]]], np.uint8)  # tinted, contrast 0.5
+    cv2.imwrite(str(albedo), np.tile(tile, (50, 40, 1)))
+    argv = ["simulate", "--surface", str(files / "corner.npz"), "--grid", "12x8"]
+    argv += ["--mode", "conformal", "--out", str(out)]
+    assert main([*argv, "--albedo", str(albedo), "--ambient", "0.05", "--compensate"]) == 0
+    said = capsys.readouterr().out
+    assert "surface colour compensated" in said
+    seen = cv2.imread(str(out))
+    assert seen.shape[1] > 4 * seen.shape[0]  # input | standard | corrected | compensated
+    for bad, why in [
+        (["--albedo", str(files / "none.png")], "image not found"),
+        (["--albedo", str(files / "corner.npz")], "image"),
+        (["--ambient", "nan"], "ambient"),
+        (["--ambient", "-0.1"], "ambient"),
+    ]:
+        assert _status([*argv, *bad]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert why in err[-1]
+
+
+def _status(argv: list[str]) -> int:
+    """The exit status of ``adaproj argv`` (argparse's own errors exit)."""
+    try:
+        return main(argv)
+    except SystemExit as e:
+        return int(e.code or 0)
