@@ -21,6 +21,8 @@ Pure: arrays in, arrays out.
 
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -68,7 +70,7 @@ def scaled_irradiance(surface: Surface, vignetting: Vignetting | None = None) ->
 
 def seen_light(
     frame: NDArray[np.uint8],
-    albedo: FloatArray,
+    albedo: NDArray[np.floating[Any]],
     irradiance: FloatArray,
     ambient: float,
     gamma: float = 2.2,
@@ -80,7 +82,7 @@ def seen_light(
         )
     lin = (np.arange(256) / 255.0) ** gamma
     sent = lin[frame] * irradiance[..., None] + ambient
-    out: FloatArray = albedo * sent
+    out: FloatArray = np.asarray(albedo, np.float64) * sent
     return out
 
 
@@ -91,7 +93,7 @@ def encode(light: FloatArray, gamma: float = 2.2) -> NDArray[np.uint8]:
 
 
 def simulated_captures(
-    albedo: FloatArray,
+    albedo: NDArray[np.floating[Any]],
     irradiance: FloatArray,
     ambient: float,
     rng: np.random.Generator,
