@@ -20,11 +20,13 @@ primary; the room's light is tinted as the surface tints the projector's white).
 Compensation (:func:`plan`, :func:`compensate`) asks for ``L = s t + b`` for content
 ``t`` (linear light in [0, 1]): one global scale ``s`` for every pixel and a uniform
 black ``b``, so ``p = M^-1 (s t + b - a)``. ``s`` is the largest white most pixels can
-show (a low quantile of what each pixel can reach, so little clips); where a pixel
-cannot reach it, its light is scaled back along the line from its black to the target
-(hue kept, as bright as it can be: clipping-aware, after Grundhoefer and Iwai, "Robust,
-error-tolerant photometric projector compensation", IEEE TIP 2015). A surface so dark
-that the scale keeps less than ``min_brightness`` of the plain picture's mean is refused.
+show (a low quantile of what each pixel can reach, so little clips), but no less than
+``min_brightness`` of the plain picture's mean (a few dark patches fall short rather
+than dim everything); where a pixel cannot reach it, its light is scaled back along the
+line from its black to the target (hue kept, as bright as it can be: clipping-aware,
+after Grundhoefer and Iwai, "Robust, error-tolerant photometric projector
+compensation", IEEE TIP 2015). A surface on which more than ``max_clipped`` of the
+picture would fall short is refused.
 
 Per displayed frame (:func:`colour_gain`) the compensation is a gain per pixel and
 primary in 8 bits (one saturating multiply, like the geometric gain); the room's light
@@ -79,8 +81,11 @@ class ReflectanceSettings:
     clip_quantile : float
         The share of the picture allowed to fall short of the global white.
     min_brightness : float
-        The compensated white, at least this share of the plain picture's mean white;
-        a darker surface is refused (the geometric gain alone is used).
+        The compensated white, at least this share of the plain picture's mean white
+        (more of the picture falls short of it then).
+    max_clipped : float
+        The share of the picture that may fall short of the compensated white; a
+        surface darker than that is refused (the geometric gain alone is used).
     chroma_sigma : float
         A grey camera's colour ratios are smoothed over this many pixels (Gaussian
         sigma; 0: not smoothed).
@@ -94,6 +99,7 @@ class ReflectanceSettings:
     max_disagreement: float = 0.15
     clip_quantile: float = 0.02
     min_brightness: float = 0.25
+    max_clipped: float = 0.25
     chroma_sigma: float = 2.0
     gamma: float = 2.2
 
@@ -292,15 +298,16 @@ def plan(
     response: Response, settings: ReflectanceSettings | None = None, lift: bool = True
 ) -> Compensation:
     """The global target for ``response``: the largest white that all but
-    ``clip_quantile`` of the measured pixels reach, above a uniform black ``b`` (with
+    ``clip_quantile`` of the measured pixels reach (at least ``min_brightness`` of the
+    plain mean white), above a uniform black ``b`` (with
     ``lift``: the room's light at its brightest but for the same share; without:
     ``b = 0``, the room's light left where it falls).
 
     Raises
     ------
     CalibrationError
-        The surface is too dark: the white kept is under ``min_brightness`` of the
-        plain picture's mean.
+        The surface is too dark: more than ``max_clipped`` of it falls short of
+        ``min_brightness`` of the plain picture's mean white.
     """
     s = settings or ReflectanceSettings()
     ok = response.valid
@@ -315,15 +322,18 @@ def plan(
     reach = np.where(np.isfinite(reach), np.maximum(reach, 0.0), 0.0)
     scale = float(np.quantile(reach, s.clip_quantile))
     plain = float(np.mean(response.white()[ok]))
-    kept = scale / plain if plain > 0 else 0.0
-    if kept < s.min_brightness:
-        raise CalibrationError(
-            f"the surface is too dark to compensate: its colour would keep {kept:.0%} of "
-            f"the picture's brightness (at least {s.min_brightness:.0%}); the light is "
-            "evened out from the surface's shape alone"
-        )
+    if plain <= 0:
+        raise CalibrationError("the surface returns no light: nothing to compensate")
+    # a dark patch would dim the whole picture: it falls short instead, up to a point
+    scale = max(scale, s.min_brightness * plain)
     clipped = float(np.count_nonzero(reach < scale)) / max(reach.size, 1)
-    return Compensation(scale, b, kept, clipped)
+    if clipped > s.max_clipped:
+        raise CalibrationError(
+            f"the surface is too dark to compensate: keeping {s.min_brightness:.0%} of the "
+            f"picture's brightness, {clipped:.0%} of it would fall short (at most "
+            f"{s.max_clipped:.0%}); the light is evened out from the surface's shape alone"
+        )
+    return Compensation(scale, b, scale / plain, clipped)
 
 
 def compensate(response: Response, comp: Compensation, target: FloatArray) -> FloatArray:

@@ -13,8 +13,9 @@ surface looks the same from every direction, so the light seen of pixel ``x``,
 
 is what every viewer sees there. The simulated camera is grey: it sees
 ``sum(PRIMARY_WEIGHTS * L)`` at ``level`` camera levels for ``L = 1``, with read and
-shot noise, 8 bits and saturation, at 1/``scale`` of the frame (camera pixels mapped
-to projector pixels already).
+shot noise (of the calibration simulator's camera, averaged over
+:data:`CAMERA_PIXELS`), 8 bits and saturation, at 1/``scale`` of the frame (camera
+pixels mapped to projector pixels already).
 
 Pure: arrays in, arrays out.
 """
@@ -41,6 +42,11 @@ CAPTURE_FRAMES: tuple[tuple[str, tuple[int, int, int]], ...] = (
     ("red", (0, 0, 255)),
 )
 """The photometric captures: the name and the projector's (blue, green, red) value."""
+
+
+CAMERA_PIXELS = 4
+"""Camera pixels averaged into one projector pixel of the captures (the camera sees
+about one pixel per projector pixel; the captures are at 1/2 of the frame)."""
 
 
 def albedo_from_image(image: NDArray[np.uint8], size: tuple[int, int]) -> Float32Array:
@@ -112,7 +118,7 @@ def simulated_captures(
         frame = np.broadcast_to(np.asarray(bgr, np.uint8), (h, w, 3))
         grey = level * (seen_light(frame, albedo, irradiance, ambient, gamma) @ wt)
         small = cv2.resize(grey.astype(np.float32), size, interpolation=cv2.INTER_AREA)
-        sigma = np.sqrt(1.5**2 + 0.3 * np.maximum(small, 0.0))
+        sigma = np.sqrt(1.5**2 + 0.3 * np.maximum(small, 0.0)) / np.sqrt(CAMERA_PIXELS)
         noisy = np.clip(np.rint(small + sigma * rng.standard_normal(small.shape)), 0, 255)
         out[name] = np.where(none > 0, np.nan, noisy)
     return out
