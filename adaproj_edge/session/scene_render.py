@@ -153,11 +153,27 @@ def lit_view(
 
 
 def projector_light(frame: Image, gamma: float, black_level: float) -> NDArray[np.float32]:
-    """The light (h, w) in [black_level, 1] a projector sends for a frame (grey or BGR)."""
+    """The light (h, w) in [black_level, 1] a projector sends for a frame (grey or BGR),
+    as the grey camera weighs it: each primary's light ``(value / 255) ** gamma`` in
+    the shares of OpenCV's BGR-to-grey (a grey frame: the light of its value)."""
+    lut = (black_level + (1.0 - black_level) * (np.arange(256) / 255.0) ** gamma).astype(np.float32)
+    if frame.ndim == 3 and not _grey(frame):
+        weights = np.array([0.114, 0.587, 0.299], np.float32)
+        mixed: NDArray[np.float32] = lut[frame] @ weights
+        return mixed
     grey = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
-    lut = black_level + (1.0 - black_level) * (np.arange(256) / 255.0) ** gamma
-    out: NDArray[np.float32] = lut.astype(np.float32)[grey]
+    out: NDArray[np.float32] = lut[grey]
     return out
+
+
+def _grey(frame: Image) -> bool:
+    """Whether a BGR frame's three channels are equal (a broadcast grey one at once)."""
+    if frame.strides[2] == 0:
+        return True
+    return bool(
+        np.array_equal(frame[..., 0], frame[..., 1])
+        and np.array_equal(frame[..., 1], frame[..., 2])
+    )
 
 
 def clean_capture(
