@@ -73,6 +73,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         help=f"stop after this many poses (default {MAX_POSES}; live capture only: a replay "
         "solves the poses its session recorded)",
     )
+    p.add_argument(
+        "--photometric",
+        action="store_true",
+        help="also measure the surface's colour and the room's light at the first pose "
+        "(three more captures: the projector's primaries); written as "
+        "OUT.photometric.npz (live capture only: a replay measures when its session did)",
+    )
     p.set_defaults(run=run)
 
 
@@ -163,6 +170,7 @@ def run(args: argparse.Namespace) -> int:
         settings = ProcedureSettings(
             max_poses=max_poses,
             plan=PlanSettings(min_poses=min(PlanSettings().min_poses, max_poses)),
+            photometric=args.photometric,
         )
         devices, camera, nominal, console, closing = _live(args, settings)
     try:

@@ -2,7 +2,8 @@
 
 :func:`write_outputs` writes ``OUT.toml`` (the calibration, its ``[quality]`` table
 saying how it was solved), ``OUT.report.json`` and ``OUT.report.png`` beside it,
-each atomically (temporary file, fsync, rename). Nothing is written for a verdict
+each atomically (temporary file, fsync, rename), and with the surface's colour
+measured (``photometric``) ``OUT.photometric.npz``. Nothing is written for a verdict
 that is not good enough, and an existing calibration is never replaced by a worse
 one (a lower verdict, or the same verdict with a larger RMS) unless forced.
 
@@ -25,6 +26,7 @@ from adaproj_edge.errors import CalibrationError
 from adaproj_edge.fileio import atomic_write_bytes
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.camera import CameraSettings
+from adaproj_edge.procam.photometric import Measured
 from adaproj_edge.procam.procedure import Devices, Listener, ProcedureSettings, capture_poses
 from adaproj_edge.procam.report import LEVELS, Verdict, judge, report_dict, report_picture
 from adaproj_edge.procam.result import CalibrationResult, solve_capture
@@ -154,5 +156,18 @@ def calibrate(
     except CalibrationError as e:
         written = [q for q in report_paths(Path(out)) if q.exists()]
         refused = str(e)
+    if run.response is not None and not refused:
+        # the first pose's surface, with the depth it was measured on
+        where = photometric_path(Path(out))
+        try:
+            Measured(run.response, run.poses[0].depth_m, (p.width, p.height)).save(where)
+        except OSError as e:
+            raise CalibrationError(f"cannot write {where}: {e.strerror or e}") from None
+        written.append(where)
     listener.say("result", verdict.line)
     return Outcome(result, verdict, written, refused)
+
+
+def photometric_path(out: Path) -> Path:
+    """``OUT.photometric.npz`` beside the calibration ``OUT.toml``."""
+    return out.with_name(out.stem + ".photometric.npz")

@@ -12,12 +12,18 @@ decoded to (the camera resolves the projector more coarsely than the cells) take
 weighted mean of their decoded neighbours within about one decoded cell; farther ones
 stay NaN (not measured).
 
-Pure: arrays in, arrays out.
+A measured response belongs to the surface it was measured on: it is kept with that
+pose's depth (:class:`Measured`, saved beside the calibration as
+``OUT.photometric.npz``) and holds only while the depth the device sees stays that
+surface (:meth:`Measured.holds_for`); the geometric gain stays either way.
 """
 
 from __future__ import annotations
 
+import json
+import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -25,6 +31,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, Image
 from adaproj_edge.errors import InputError
+from adaproj_edge.fileio import atomic_savez, load_npz
 from adaproj_edge.procam.graycode import Decoded
 from adaproj_edge.render.reflectance import (
     PRIMARY_WEIGHTS,
@@ -111,3 +118,61 @@ def measure_pose(
     """
     maps = [to_projector(c, decoded, projector_size, scale) for c in (black, white, *primaries)]
     return measure(maps[0], maps[1], maps[2:], weights, settings)
+
+
+MOVED_M = 0.03
+"""The median depth change (metres) beyond which the device has moved off the surface
+its colour was measured on."""
+
+
+@dataclass(frozen=True)
+class Measured:
+    """A surface's measured response and the depth (h, w, metres, NaN: none) the
+    device saw of it when it was measured."""
+
+    response: Response
+    depth_m: FloatArray
+    projector_size: tuple[int, int]
+
+    def holds_for(self, depth_m: FloatArray, moved_m: float = MOVED_M) -> bool:
+        """Whether a depth image (any size) still shows the measured surface: the
+        median |change| over the pixels valid in both is at most ``moved_m`` and they
+        overlap over at least half of the measured ones."""
+        now = np.asarray(depth_m, np.float32)
+        h, w = self.depth_m.shape
+        if now.shape != (h, w):
+            now = np.asarray(cv2.resize(now, (w, h), interpolation=cv2.INTER_NEAREST), np.float32)
+        was = np.isfinite(self.depth_m) & (self.depth_m > 0)
+        both = was & np.isfinite(now) & (now > 0)
+        if 2 * int(np.count_nonzero(both)) < int(np.count_nonzero(was)):
+            return False
+        return float(np.median(np.abs(now[both] - self.depth_m[both]))) <= moved_m
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write it as ``.npz`` (atomically)."""
+        r = self.response
+        meta = json.dumps({"projector_size": list(self.projector_size)})
+        atomic_savez(
+            path, mix=r.mix, ambient=r.ambient, valid=r.valid, depth_m=self.depth_m, meta=meta
+        )
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Measured:
+        """Read a file :meth:`save` wrote (a clear error for anything else)."""
+        z = load_npz(
+            path, "photometric measurement", ("mix", "ambient", "valid", "depth_m", "meta")
+        )
+        mix = np.asarray(z["mix"], np.float32)
+        ambient = np.asarray(z["ambient"], np.float32)
+        valid = np.asarray(z["valid"], bool)
+        depth = np.asarray(z["depth_m"], np.float64)
+        h, w = valid.shape if valid.ndim == 2 else (0, 0)
+        if mix.shape != (h, w, 3, 3) or ambient.shape != (h, w, 3) or depth.ndim != 2:
+            raise InputError(f"{path}: the photometric arrays do not fit together")
+        try:
+            size = tuple(int(v) for v in json.loads(str(z["meta"]))["projector_size"])
+        except (ValueError, KeyError, TypeError):
+            raise InputError(f"{path}: its meta has no projector_size") from None
+        if len(size) != 2:
+            raise InputError(f"{path}: its meta has no projector_size")
+        return cls(Response(mix, ambient, valid), depth, (size[0], size[1]))

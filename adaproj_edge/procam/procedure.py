@@ -17,7 +17,11 @@ For each pose (:func:`capture_poses`):
    light drowning the patterns make the pose be taken again, with what to change
    (and end it after ``max_retakes``), each with a message that says what to do —
    and made into point pairs;
-6. :func:`~adaproj_edge.procam.plan.assess` says how many poses are still needed
+6. with ``photometric`` on, after the first good pose the projector shows its three
+   primaries too, and the surface's colour and the room's light are measured from
+   them and the pose's black and white (:mod:`adaproj_edge.procam.photometric`);
+   captures it refuses are said, and the calibration goes on without;
+7. :func:`~adaproj_edge.procam.plan.assess` says how many poses are still needed
    and what to change; the procedure stops when it says enough (and
    ``min_poses`` are done) or at ``max_poses``.
 
@@ -58,7 +62,9 @@ from adaproj_edge.motion.tracker import is_still
 from adaproj_edge.procam.graycode import Decoded, DecodeSettings, PatternSet, decode
 from adaproj_edge.procam.imu import integrate_gyro, scene_planes
 from adaproj_edge.procam.pairs import Pairs, PairSettings, pose_pairs
+from adaproj_edge.procam.photometric import PRIMARY_FRAMES, measure_pose, primary_frame
 from adaproj_edge.procam.plan import Plan, PlanSettings, PoseSummary, assess
+from adaproj_edge.render.reflectance import Response
 from adaproj_edge.session.codec import Record
 from adaproj_edge.session.records import PatternShown
 
@@ -80,6 +86,7 @@ class ProcedureSettings:
     decode: DecodeSettings = field(default_factory=DecodeSettings)
     pairs: PairSettings = field(default_factory=PairSettings)
     plan: PlanSettings = field(default_factory=PlanSettings)
+    photometric: bool = False
 
 
 class Listener(Protocol):
@@ -238,6 +245,8 @@ class CaptureRun:
     camera_size: tuple[int, int]
     plan: Plan | None
     retakes: int = 0
+    response: Response | None = None
+    photometric_note: str = ""
 
 
 def _summary(p: PoseCapture) -> PoseSummary:
@@ -347,19 +356,56 @@ def _capture_one(
         if f.sensor_ns >= t_start:
             depth.append(f)
             listener.record(f)
-    frames: list[CameraFrame] = []
-    wait_ns = cam.display_latency_ns + int(cam.camera_latency_ms * 1e6) + 10 * cam.frame_ns
-    for p in patterns.patterns:
-        t_show = dev.show.show(pose, p.index, p.name, patterns.frame(p.index))
-        while True:
-            fr = dev.camera.read()
-            if fr is None or dev.clock.now_ns() - t_show > max(wait_ns, 2_000_000_000):
-                raise CalibrationError("the camera sends no frames (or the recording ended)")
-            if fr.sensor_ns >= t_show + cam.display_latency_ns:
-                frames.append(fr)
-                listener.record(fr)
-                break
+    frames = [
+        _capture_frame(dev, cam, listener, pose, p.index, p.name, patterns.frame(p.index))
+        for p in patterns.patterns
+    ]
     return frames, depth
+
+
+def _capture_frame(
+    dev: Devices, cam: CameraSettings, listener: Listener, pose: int, index: int, name: str,
+    frame: Image,
+) -> CameraFrame:  # fmt: skip
+    """Show ``frame`` and take the first camera frame exposed after it is on the wall."""
+    wait_ns = cam.display_latency_ns + int(cam.camera_latency_ms * 1e6) + 10 * cam.frame_ns
+    t_show = dev.show.show(pose, index, name, frame)
+    while True:
+        fr = dev.camera.read()
+        if fr is None or dev.clock.now_ns() - t_show > max(wait_ns, 2_000_000_000):
+            raise CalibrationError("the camera sends no frames (or the recording ended)")
+        if fr.sensor_ns >= t_show + cam.display_latency_ns:
+            listener.record(fr)
+            return fr
+
+
+def _photometric(
+    dev: Devices,
+    cam: CameraSettings,
+    listener: Listener,
+    pose: int,
+    first: int,
+    frames: list[CameraFrame],
+    dec: Decoded,
+    size: tuple[int, int],
+) -> tuple[Response | None, str]:
+    """The three primaries captured after pose ``pose``'s patterns (indices from
+    ``first``) and the surface's response measured with its black and white; None and
+    the reason when the captures are refused (the calibration goes on without)."""
+    prim = [
+        _capture_frame(dev, cam, listener, pose, first + j, name, primary_frame(j, size)).image
+        for j, (name, _) in enumerate(PRIMARY_FRAMES)
+    ]
+    try:
+        response = measure_pose(frames[0].image, frames[1].image, prim, dec, size)
+    except CalibrationError as e:
+        said = f"the surface's colour was not measured: {e}"
+        listener.say("photometric", said)
+        return None, said
+    listener.say(
+        "photometric", f"pose {pose + 1}: the surface's colour and the room's light measured"
+    )
+    return response, ""
 
 
 def capture_poses(
@@ -386,6 +432,8 @@ def capture_poses(
     poses: list[PoseCapture] = []
     plan: Plan | None = None
     retakes = total_retakes = 0
+    response: Response | None = None
+    note, measured = "", False
     while len(poses) < s.max_poses:
         k = len(poses)
         if k == 0:
@@ -449,13 +497,18 @@ def capture_poses(
                 turn,
             )
         )
+        if s.photometric and not measured:
+            measured = True
+            response, note = _photometric(
+                dev, cam, listener, k, len(patterns), frames, dec, projector_size
+            )
         plan = assess([_summary(p) for p in poses], projector_size, s.plan)
         listener.say("captured", f"pose {k + 1}: {len(pairs)} point pairs; {plan.status}")
         if plan.done:
             break
     t, g, _ = log.arrays()
     listener.say("done", f"{len(poses)} poses captured; solving")
-    return CaptureRun(poses, t, g, K, dev.camera.size, plan, total_retakes)
+    return CaptureRun(poses, t, g, K, dev.camera.size, plan, total_retakes, response, note)
 
 
 def _depth_K(

@@ -17,6 +17,7 @@ from adaproj_edge.hal.camera import CameraFrame, CameraSettings, ReplayCamera
 from adaproj_edge.hal.clock import VirtualClock
 from adaproj_edge.hal.depth import ReplayDepthCamera
 from adaproj_edge.hal.imu import ReplayImu
+from adaproj_edge.procam.photometric import PRIMARY_FRAMES
 from adaproj_edge.procam.plan import PlanSettings
 from adaproj_edge.procam.procedure import (
     CaptureRun,
@@ -41,12 +42,15 @@ class RecordedCapture:
     min_poses: int
     nominal: Calibration
     attachments: dict[str, bytes]
+    photometric: bool = False
 
     @property
     def settings(self) -> ProcedureSettings:
         """The procedure's settings as recorded (the pose counts it ran with)."""
         return ProcedureSettings(
-            max_poses=self.max_poses, plan=PlanSettings(min_poses=self.min_poses)
+            max_poses=self.max_poses,
+            plan=PlanSettings(min_poses=self.min_poses),
+            photometric=self.photometric,
         )
 
 
@@ -85,11 +89,14 @@ def recorded_capture(path: str | os.PathLike[str]) -> RecordedCapture:
         raise InputError(f"{path}: capture.json asks for {min_poses}..{max_poses} poses")
     clock = VirtualClock()
     recs = ses.records
+    shown = [r for r in recs if isinstance(r, PatternShown)]
+    # a session that measured the surface's colour shows the primaries: replay it so
+    photometric = any(r.name == PRIMARY_FRAMES[0][0] for r in shown)
     devices = Devices(
-        ReplayShow(iter([r for r in recs if isinstance(r, PatternShown)]), clock),
+        ReplayShow(iter(shown), clock),
         ReplayCamera(K, size, [r for r in recs if isinstance(r, CameraFrame)], clock),
         ReplayDepthCamera(ses.calibration.depth, ses.depth, clock),
         ReplayImu(ses.imu, clock),
         clock,
     )
-    return RecordedCapture(devices, camera, max_poses, min_poses, ses.calibration, att)
+    return RecordedCapture(devices, camera, max_poses, min_poses, ses.calibration, att, photometric)

@@ -152,6 +152,7 @@ class CalibrationSimSettings:
     depth_fps: float = 15.0
     faults: SimFaults = field(default_factory=SimFaults)
     stops: FloatArray | None = None
+    photometric: bool = False
 
 
 class SimWorld:
@@ -203,15 +204,21 @@ class SimDisplay:
         return self._timer.wait()
 
     def show(self, frame: Image) -> None:
-        """Queue a (height, width, 3) BGR frame to reach the wall, grey, after the display
-        latency."""
+        """Queue a (height, width, 3) BGR frame to reach the wall after the display
+        latency (grey when its channels are equal; the camera weighs a colour frame's
+        primaries after the projector's gamma)."""
         w = self.world
         lat = int(w.settings.display_latency_ms * 1e6)
         if frame.ndim == 3 and frame.strides[2] == 0:  # one grey value per pixel
-            grey: Image = np.array(frame[..., 0])
+            kept: Image = np.array(frame[..., 0])
+        elif frame.ndim == 3 and not (
+            np.array_equal(frame[..., 0], frame[..., 1])
+            and np.array_equal(frame[..., 1], frame[..., 2])
+        ):
+            kept = np.array(frame)
         else:
-            grey = np.asarray(cv2.cvtColor(np.ascontiguousarray(frame), cv2.COLOR_BGR2GRAY))
-        w.shown.append((w.clock.now_ns() + lat, len(w.shown), grey))
+            kept = np.asarray(cv2.cvtColor(np.ascontiguousarray(frame), cv2.COLOR_BGR2GRAY))
+        w.shown.append((w.clock.now_ns() + lat, len(w.shown), kept))
 
     def close(self) -> None:
         """Nothing to release."""
@@ -506,7 +513,9 @@ def simulate_calibration(
             LiveShow(sim.display, sim.world.clock, user), sim.camera, sim.depth, sim.imu,
             sim.world.clock,
         )  # fmt: skip
-        procedure = ProcedureSettings(max_poses=s.poses, plan=PlanSettings(min_poses=s.poses))
+        procedure = ProcedureSettings(
+            max_poses=s.poses, plan=PlanSettings(min_poses=s.poses), photometric=s.photometric
+        )
         p = nominal.projector
         try:
             capture_poses(devices, s.camera, user, procedure, (p.width, p.height), nominal.R_P_I)

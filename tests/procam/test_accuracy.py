@@ -16,6 +16,7 @@ from adaproj_edge.cli import main
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.hal.board import Board
+from adaproj_edge.procam.photometric import Measured
 from adaproj_edge.session.calibration_sim import (
     CalibrationSimSettings,
     SimFaults,
@@ -129,7 +130,8 @@ def test_captures_that_cannot_work_write_nothing(
 def test_a_pose_where_the_device_moved_is_retaken(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    session, _ = simulate(tmp_path, "corner", 3, +1, 7, **small(faults=SimFaults(shake_pose=1)))
+    faults = SimFaults(shake_pose=1)
+    session, _ = simulate(tmp_path, "corner", 3, +1, 7, **small(faults=faults, photometric=True))
     s = read_session(session)
     pose2 = [p for p in s.records if getattr(p, "pose", None) == 1 and getattr(p, "index", 1) == 0]
     assert len(pose2) == 2  # pose 2's patterns began twice
@@ -138,3 +140,11 @@ def test_a_pose_where_the_device_moved_is_retaken(
     printed = capsys.readouterr().out
     assert "pose 2: the device moved during the capture; hold it still" in printed
     assert out.exists()
+    # the surface's colour measured after pose 1 (the replay measures as the session
+    # did), kept with that pose's depth: it holds there, not on a wall 10 cm nearer
+    assert "pose 1: the surface's colour and the room's light measured" in printed
+    measured = Measured.load(out.with_name("unit.photometric.npz"))
+    white = measured.response.white()[measured.response.valid]
+    assert white.size > 100 and np.all(white > 0)
+    depth = measured.depth_m
+    assert measured.holds_for(depth) and not measured.holds_for(depth - 0.1)
