@@ -194,3 +194,18 @@ def test_textured_tinted_surface_looks_like_white_end_to_end(
     psnr1, ssim1 = scores(after, content, where)
     assert psnr1 >= 25.0 and ssim1 >= 0.85, (psnr0, ssim0, psnr1, ssim1)
     assert psnr1 > psnr0 + 3.0
+
+
+def test_a_refused_surface_keeps_the_geometric_gain() -> None:
+    """``adaproj simulate``'s measured path on a surface too dark to lift (a third of
+    it reflects 3 %): the reason is said and the gain is the geometric one (from the
+    surface's shape: one channel, never brighter)."""
+    from adaproj_edge.commands.simulate import SurfaceColour, measured_gain
+
+    surf = simulate_surface("corner", Projector.default(320, 200))
+    albedo = np.ones((200, 320, 3), np.float32)
+    albedo[:, :110] = 0.03
+    notes: list[str] = []
+    gain = measured_gain(surf, SurfaceColour(albedo, 0.02), notes)
+    assert len(notes) == 1 and "not compensated" in notes[0] and "too dark" in notes[0]
+    assert gain.light.ndim == 2 and float(gain.light.max()) <= 1.0
