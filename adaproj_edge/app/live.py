@@ -291,6 +291,10 @@ def run_device(
         board.display.device, clock=clock, refresh_hz=board.display.refresh_hz
     )
     runtime = Runtime(calibration, display, clock, [builtin_item()], settings, state_dir=state_dir)
+    if settings.photometry is not None:  # the surface's colour, when calibrate measured it
+        from adaproj_edge.procam.photometric import load_beside
+
+        runtime.warps.measured = load_beside(board.calibration_path)
     imu_held, depth_held, button_held = _Held(), _Held(), _Held()
     runtime.imu_direct = True  # the IMU's reader feeds the display loop itself
 

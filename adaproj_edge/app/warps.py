@@ -19,11 +19,15 @@ warm-started, saved, probed) are the planner's.
 
 With ``settings.photometry`` set, a pose's entry also keeps the brightness gain made
 from its surface (:mod:`adaproj_edge.render.photometry`, made when first shown): a
-cached pose's frames cost one multiply more, nothing else.
+cached pose's frames cost one multiply more, nothing else. With the surface's colour
+measured (:attr:`WarpSource.measured`) and the device still before that surface, the
+gain is the measured colour gain instead (:mod:`adaproj_edge.render.reflectance`);
+off that surface, the geometric one, and the reason is logged.
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass
 
@@ -33,19 +37,24 @@ from adaproj_edge.app.settings import AppSettings
 from adaproj_edge.app.telemetry import Telemetry
 from adaproj_edge.arrays import Float32Array, FloatArray
 from adaproj_edge.content.contentmap import ContentMap
+from adaproj_edge.errors import CalibrationError
 from adaproj_edge.geometry.irradiance import Vignetting
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.procam.photometric import Measured
 from adaproj_edge.render.display_maps import DisplayMapBuilder
 from adaproj_edge.render.frame import RemapMaps
 from adaproj_edge.render.maps import PixelWeights
 from adaproj_edge.render.photometry import GainMap, gain_map
+from adaproj_edge.render.reflectance import colour_gain, plan
 from adaproj_edge.render.reproject import inset_warp
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import WarpCache
 from adaproj_edge.warp.planner import ContentFreeWarp, PlanSettings, WarpPlanner
 from adaproj_edge.warp.posecache import PoseCache, pose_key
 from adaproj_edge.warp.warpmap import Warp
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -123,6 +132,11 @@ class WarpSource:
         self.display = DisplayMapBuilder(projector, s.grid.vertices(projector), s.map_scale)
         self.poses: PoseCache[PoseEntry] = PoseCache(s.pose_cache_size if s.caching else 0)
         self.margin = s.display.stabiliser.margin
+        self.measured: Measured | None = None
+        """The surface's colour measured by ``adaproj calibrate --photometric`` (used by
+        :meth:`gain` while the device stays on that surface)."""
+        self._colour: GainMap | str | None = None
+        self._said = ""
 
     def shown(self, warp: Warp) -> Warp:
         """``warp`` as drawn: its content inset by the stabilisation margin."""
@@ -226,11 +240,37 @@ class WarpSource:
             return None
         if entry.gain is None:
             with self.times.timer("gain"):
-                warp = entry.warp
-                small = entry.weights.map(warp.image_xy, warp.content_size)
-                picture = np.isfinite(small[..., 0])
-                entry.gain = gain_map(surface, self.vignetting, ph, picture=picture)
+                colour = self._measured_gain(surface)
+                if colour is not None:
+                    entry.gain = colour
+                else:
+                    warp = entry.warp
+                    small = entry.weights.map(warp.image_xy, warp.content_size)
+                    picture = np.isfinite(small[..., 0])
+                    entry.gain = gain_map(surface, self.vignetting, ph, picture=picture)
         return entry.gain
+
+    def _measured_gain(self, surface: Surface) -> GainMap | None:
+        """The colour gain of :attr:`measured` (made once) when ``surface`` is still the
+        one it was measured on; None (and the reason logged once) otherwise."""
+        if self.measured is None:
+            return None
+        reason = self.measured.holds_on(surface)
+        if reason is None:
+            if self._colour is None:
+                try:
+                    m = self.measured
+                    comp = plan(m.response, lift=False)
+                    self._colour = colour_gain(m.response, comp, m.projector_size)
+                except CalibrationError as e:
+                    self._colour = str(e)
+            if isinstance(self._colour, GainMap):
+                return self._colour
+            reason = self._colour
+        if reason != self._said:
+            log.info("surface colour not compensated: %s; the light is evened out alone", reason)
+            self._said = reason
+        return None
 
     def content_aware(
         self,

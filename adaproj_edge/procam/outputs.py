@@ -26,7 +26,7 @@ from adaproj_edge.errors import CalibrationError
 from adaproj_edge.fileio import atomic_write_bytes
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.camera import CameraSettings
-from adaproj_edge.procam.photometric import Measured
+from adaproj_edge.procam.photometric import Measured, photometric_path, surface_distance
 from adaproj_edge.procam.procedure import Devices, Listener, ProcedureSettings, capture_poses
 from adaproj_edge.procam.report import LEVELS, Verdict, judge, report_dict, report_picture
 from adaproj_edge.procam.result import CalibrationResult, solve_capture
@@ -157,17 +157,20 @@ def calibrate(
         written = [q for q in report_paths(Path(out)) if q.exists()]
         refused = str(e)
     if run.response is not None and not refused:
-        # the first pose's surface, with the depth it was measured on
+        # the first pose's surface, with its distance from the solved projector
         where = photometric_path(Path(out))
+        first = run.poses[0]
+        dist = surface_distance(
+            first.depth_m,
+            run.camera_K,
+            result.calibration.T_P_D,
+            first.decoded,
+            (p.width, p.height),
+        )
         try:
-            Measured(run.response, run.poses[0].depth_m, (p.width, p.height)).save(where)
+            Measured(run.response, dist, (p.width, p.height)).save(where)
         except OSError as e:
             raise CalibrationError(f"cannot write {where}: {e.strerror or e}") from None
         written.append(where)
     listener.say("result", verdict.line)
     return Outcome(result, verdict, written, refused)
-
-
-def photometric_path(out: Path) -> Path:
-    """``OUT.photometric.npz`` beside the calibration ``OUT.toml``."""
-    return out.with_name(out.stem + ".photometric.npz")

@@ -13,32 +13,39 @@ weighted mean of their decoded neighbours within about one decoded cell; farther
 stay NaN (not measured).
 
 A measured response belongs to the surface it was measured on: it is kept with that
-pose's depth (:class:`Measured`, saved beside the calibration as
-``OUT.photometric.npz``) and holds only while the depth the device sees stays that
-surface (:meth:`Measured.holds_for`); the geometric gain stays either way.
+pose's distance to the surface per projector cell (:class:`Measured`, saved beside
+the calibration as ``OUT.photometric.npz``) and holds only while the surface the
+device sees stays there (:meth:`Measured.holds_on`); the geometric gain stays either
+way.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import Path
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, Image
-from adaproj_edge.errors import InputError
+from adaproj_edge.errors import AdaprojError, InputError
 from adaproj_edge.fileio import atomic_savez, load_npz
+from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.procam.graycode import Decoded
+from adaproj_edge.procam.pairs import depth_at_camera
 from adaproj_edge.render.reflectance import (
     PRIMARY_WEIGHTS,
     ReflectanceSettings,
     Response,
     measure,
 )
+
+log = logging.getLogger(__name__)
 
 PRIMARY_FRAMES: tuple[tuple[str, tuple[int, int, int]], ...] = (
     ("blue", (255, 0, 0)),
@@ -121,53 +128,65 @@ def measure_pose(
 
 
 MOVED_M = 0.03
-"""The median depth change (metres) beyond which the device has moved off the surface
-its colour was measured on."""
+"""The median change (metres) of the distance to the surface, over the measured
+cells, beyond which the device has moved off the surface its colour was measured on."""
 
 
 @dataclass(frozen=True)
 class Measured:
-    """A surface's measured response and the depth (h, w, metres, NaN: none) the
-    device saw of it when it was measured."""
+    """A surface's measured response and the distance (h, w, metres from the
+    projector's centre, NaN: none) of the surface behind each of its cells when it was
+    measured."""
 
     response: Response
-    depth_m: FloatArray
+    distance_m: FloatArray
     projector_size: tuple[int, int]
 
-    def holds_for(self, depth_m: FloatArray, moved_m: float = MOVED_M) -> bool:
-        """Whether a depth image (any size) still shows the measured surface: the
-        median |change| over the pixels valid in both is at most ``moved_m`` and they
-        overlap over at least half of the measured ones."""
-        now = np.asarray(depth_m, np.float32)
-        h, w = self.depth_m.shape
-        if now.shape != (h, w):
-            now = np.asarray(cv2.resize(now, (w, h), interpolation=cv2.INTER_NEAREST), np.float32)
-        was = np.isfinite(self.depth_m) & (self.depth_m > 0)
-        both = was & np.isfinite(now) & (now > 0)
+    def holds_on(self, surface: Surface, moved_m: float = MOVED_M) -> str | None:
+        """None when ``surface`` (the device's now) is still the measured one: over at
+        least half of the measured cells, the median |change of distance| is at most
+        ``moved_m``; else why not."""
+        p = surface.projector
+        if (p.width, p.height) != self.projector_size:
+            return f"measured for a {self.projector_size} frame, not {p.width}x{p.height}"
+        h, w = self.distance_m.shape
+        v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+        sx, sy = p.width / w, p.height / h
+        uv = np.stack([(u + 0.5) * sx - 0.5, (v + 0.5) * sy - 0.5], axis=-1)
+        now = np.linalg.norm(surface.points_at(uv), axis=-1)
+        was = np.isfinite(self.distance_m)
+        both = was & np.isfinite(now)
         if 2 * int(np.count_nonzero(both)) < int(np.count_nonzero(was)):
-            return False
-        return float(np.median(np.abs(now[both] - self.depth_m[both]))) <= moved_m
+            return "the device moved off the surface its colour was measured on"
+        change = float(np.median(np.abs(now[both] - self.distance_m[both])))
+        if change > moved_m:
+            return f"the device moved {change * 100:.0f} cm from where the colour was measured"
+        return None
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write it as ``.npz`` (atomically)."""
         r = self.response
         meta = json.dumps({"projector_size": list(self.projector_size)})
         atomic_savez(
-            path, mix=r.mix, ambient=r.ambient, valid=r.valid, depth_m=self.depth_m, meta=meta
+            path,
+            mix=r.mix,
+            ambient=r.ambient,
+            valid=r.valid,
+            distance_m=self.distance_m,
+            meta=meta,
         )
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Measured:
         """Read a file :meth:`save` wrote (a clear error for anything else)."""
-        z = load_npz(
-            path, "photometric measurement", ("mix", "ambient", "valid", "depth_m", "meta")
-        )
+        names = ("mix", "ambient", "valid", "distance_m", "meta")
+        z = load_npz(path, "photometric measurement", names)
         mix = np.asarray(z["mix"], np.float32)
         ambient = np.asarray(z["ambient"], np.float32)
         valid = np.asarray(z["valid"], bool)
-        depth = np.asarray(z["depth_m"], np.float64)
+        dist = np.asarray(z["distance_m"], np.float64)
         h, w = valid.shape if valid.ndim == 2 else (0, 0)
-        if mix.shape != (h, w, 3, 3) or ambient.shape != (h, w, 3) or depth.ndim != 2:
+        if mix.shape != (h, w, 3, 3) or ambient.shape != (h, w, 3) or dist.shape != (h, w):
             raise InputError(f"{path}: the photometric arrays do not fit together")
         try:
             size = tuple(int(v) for v in json.loads(str(z["meta"]))["projector_size"])
@@ -175,4 +194,46 @@ class Measured:
             raise InputError(f"{path}: its meta has no projector_size") from None
         if len(size) != 2:
             raise InputError(f"{path}: its meta has no projector_size")
-        return cls(Response(mix, ambient, valid), depth, (size[0], size[1]))
+        return cls(Response(mix, ambient, valid), dist, (size[0], size[1]))
+
+
+def surface_distance(
+    depth_m: FloatArray,
+    camera_K: FloatArray,
+    T_P_D: FloatArray,
+    decoded: Decoded,
+    projector_size: tuple[int, int],
+    scale: int = 2,
+) -> FloatArray:
+    """The distance from the projector's centre (h, w, metres, NaN: none) of the
+    surface behind each projector cell, from a pose's depth (frame D, any size of the
+    camera's field of view), the camera's intrinsics at the decoded captures' size,
+    the rig's ``T_P_D`` and the pose's decode."""
+    h, w = decoded.valid.shape
+    z = depth_at_camera(np.asarray(depth_m, np.float64), (w, h))
+    v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+    rays = np.stack([u, v, np.ones_like(u)], -1) @ np.linalg.inv(camera_K).T
+    pts = rays * z[..., None]
+    pts_p = pts @ T_P_D[:3, :3].T + T_P_D[:3, 3]
+    dist = np.where(z > 0, np.linalg.norm(pts_p, axis=-1), np.nan)
+    ok = replace(decoded, code_x=np.where(np.isfinite(dist), decoded.code_x, -1).astype(np.int32))
+    return to_projector(np.nan_to_num(dist), ok, projector_size, scale)
+
+
+def photometric_path(calibration: str | os.PathLike[str]) -> Path:
+    """``OUT.photometric.npz`` beside the calibration ``OUT.toml``."""
+    p = Path(calibration)
+    return p.with_name(p.stem + ".photometric.npz")
+
+
+def load_beside(calibration: str | os.PathLike[str]) -> Measured | None:
+    """The measurement written beside the calibration file, None when there is none
+    or it cannot be used (the reason logged: the geometric gain serves)."""
+    path = photometric_path(calibration)
+    if not path.is_file():
+        return None
+    try:
+        return Measured.load(path)
+    except AdaprojError as e:
+        log.warning("surface colour not compensated: %s", e)
+        return None

@@ -114,3 +114,37 @@ def test_the_replay_switch() -> None:
     assert replay_settings(parser.parse_args(["replay", "--no-compensate"])) == default
     on = replay_settings(parser.parse_args(["replay", "--compensate", "--no-cache"]))
     assert on.photometry == PhotometrySettings(scale=on.map_scale) and not on.caching
+
+
+def test_a_measured_colour_serves_while_the_device_stays_on_its_surface(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """The surface's colour measured (from simulated captures) is the gain while the
+    device sees that surface, one gain per primary; on a wall 10 % nearer the gain is
+    the geometric one again, and why is logged once."""
+    from adaproj_edge.procam.photometric import Measured
+    from adaproj_edge.render.reflectance import measure
+    from adaproj_edge.render.surface_light import scaled_irradiance, simulated_captures
+
+    s = simulate_surface("corner", Projector.default(640, 400))
+    albedo = np.ones((400, 640, 3), np.float32) * np.array([0.6, 0.8, 1.0], np.float32)
+    caps = simulated_captures(albedo, scaled_irradiance(s), 0.03, np.random.default_rng(0))
+    response = measure(caps["black"], caps["white"], [caps[c] for c in ("blue", "green", "red")])
+    h, w = response.valid.shape
+    v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+    uv = np.stack([(u + 0.5) * 640 / w - 0.5, (v + 0.5) * 400 / h - 0.5], -1)
+    dist = np.linalg.norm(s.points_at(uv), axis=-1)
+    ws = WarpSettings(mode="content")
+    o = np.zeros(3)
+    on = WarpSource(s.projector, AppSettings(photometry=PhotometrySettings(scale=4)), Telemetry(9))
+    on.measured = Measured(response, dist, (640, 400))
+    entry, _ = on.pose(s, 5, 0, o, SIZE, ws)
+    gain = on.gain(entry, s)
+    assert gain is not None and gain.light.ndim == 3
+    # blue is returned least: it gets the most light (the tint undone)
+    assert np.median(gain.light[..., 0]) > np.median(gain.light[..., 2])
+    near = type(s)(s.points * 0.9, s.projector)
+    entry, _ = on.pose(near, 5, 0, o, SIZE, ws)
+    with caplog.at_level("INFO"):
+        assert (g := on.gain(entry, near)) is not None and g.light.ndim == 2
+    assert "surface colour not compensated: the device moved" in caplog.text

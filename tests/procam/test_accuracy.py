@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 from adaproj_edge.cli import main
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.projector import Projector
+from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.hal.board import Board
 from adaproj_edge.procam.photometric import Measured
 from adaproj_edge.session.calibration_sim import (
@@ -141,10 +142,19 @@ def test_a_pose_where_the_device_moved_is_retaken(
     assert "pose 2: the device moved during the capture; hold it still" in printed
     assert out.exists()
     # the surface's colour measured after pose 1 (the replay measures as the session
-    # did), kept with that pose's depth: it holds there, not on a wall 10 cm nearer
+    # did), kept with the distance to that wall (the corner, 1.2-2.2 m away): it holds
+    # on that surface, not on one 10 % nearer
     assert "pose 1: the surface's colour and the room's light measured" in printed
     measured = Measured.load(out.with_name("unit.photometric.npz"))
     white = measured.response.white()[measured.response.valid]
     assert white.size > 100 and np.all(white > 0)
-    depth = measured.depth_m
-    assert measured.holds_for(depth) and not measured.holds_for(depth - 0.1)
+    dist = measured.distance_m
+    assert 1.2 < np.nanmin(dist) and np.nanmax(dist) < 2.2
+    projector = Projector(Calibration.load(out).projector.K, 1280, 800)
+    h, w = dist.shape
+    v, u = np.mgrid[0:h, 0:w]
+    rays = projector.rays(np.stack([u * 1279 / (w - 1), v * 799 / (h - 1)], -1))
+    unit = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+    assert measured.holds_on(Surface(unit * dist[..., None], projector)) is None
+    nearer = measured.holds_on(Surface(0.9 * unit * dist[..., None], projector))
+    assert nearer is not None and "moved" in nearer

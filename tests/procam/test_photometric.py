@@ -6,13 +6,23 @@ pixel); the compensation made from it evens out what the camera then sees."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import pytest
 
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.procam.graycode import PatternSet, decode
-from adaproj_edge.procam.photometric import measure_pose, primary_frame, to_projector
+from adaproj_edge.procam.photometric import (
+    Measured,
+    load_beside,
+    measure_pose,
+    photometric_path,
+    primary_frame,
+    to_projector,
+)
 from adaproj_edge.render.photometry import apply_gain
-from adaproj_edge.render.reflectance import colour_gain, plan
+from adaproj_edge.render.reflectance import Response, colour_gain, plan
 from adaproj_edge.session.scene_render import CameraOptics, clean_capture, lit_view, render_capture
 from adaproj_edge.session.simulator import Scene
 
@@ -76,3 +86,23 @@ def test_measured_light_matches_the_renderer_and_compensation_evens_it() -> None
     ]
     # (the rest: the measurement's own error above, and the 2 % of cells let fall short)
     assert spread[0] > 1.8 and spread[1] < 1.2, spread
+
+
+def test_the_measurement_beside_the_calibration(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Written whole and read back; none beside a calibration: None; a damaged file:
+    None and a warning (the geometric gain serves)."""
+    h, w = 4, 6
+    mix = np.broadcast_to(np.eye(3, dtype=np.float32) * 100, (h, w, 3, 3)).copy()
+    r = Response(mix, np.ones((h, w, 3), np.float32), np.ones((h, w), bool))
+    cal = tmp_path / "unit.toml"
+    assert load_beside(cal) is None
+    Measured(r, np.full((h, w), 1.5), (12, 8)).save(photometric_path(cal))
+    back = load_beside(cal)
+    assert back is not None and np.array_equal(back.response.mix, mix)
+    assert back.projector_size == (12, 8) and np.all(back.distance_m == 1.5)
+    photometric_path(cal).write_bytes(b"PK not really")
+    with caplog.at_level("WARNING"):
+        assert load_beside(cal) is None
+    assert "surface colour not compensated" in caplog.text
