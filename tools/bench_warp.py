@@ -17,11 +17,20 @@ For each grid and doubly curved surface, ``content`` mode with an off-centre sub
   seen the scene (mesh topology and solver structures kept, as the device does).
 
 Prints the median time to the result, its iterations, and the ratios reference / ours
-(target: >= 10x at 20x20 and 40x40). Then the new surfaces (relief, waves, a curved
-crease) at the default grid, where the engine refines the mesh: their time, the grid
-it used, and the guard's choice.
+(target: >= 10x at 20x20 and 40x40), and the share of one cold ``compute_warp`` spent in
+the guard and the crease analysis (``guard.guard`` and the meshes'
+``creases.unfold_measured``, from a cProfile run timed by the process's CPU time;
+target: <= 25 %). Then the new surfaces (relief, waves, a curved crease) at the default
+grid, where the engine refines the mesh: their time, the grid it used, and the guard's
+choice.
 
-    .venv/bin/python tools/bench_warp.py [--grids 20,40] [--repeat 5] [--cpu]
+``--surfaces`` takes the names of the built-in surfaces
+(:data:`~adaproj_edge.geometry.analytic.SURFACES`), ``saddle`` (a hyperbolic paraboloid
+``z = z0 - k (x^2 - y^2)``, made here) and ``all``: every surface class the quality
+tests use (half cylinder on a floor, corner, cone meeting a wall, bumps, waves, the
+spheres, the bowl) and the saddle.
+
+    .venv/bin/python tools/bench_warp.py [--surfaces all] [--grids 20,40] [--repeat 5] [--cpu]
 
 ``--cpu`` times the CPU time of the thread instead of the wall clock: on a machine
 shared with other jobs the wall clock counts the time the process waits for a core.
@@ -30,6 +39,8 @@ shared with other jobs the wall clock counts the time the process waits for a co
 from __future__ import annotations
 
 import argparse
+import cProfile
+import pstats
 import statistics
 import sys
 import time
@@ -43,7 +54,13 @@ import numpy as np
 # this tool times that checkout; bench_placement and bench_warp_mesh import this module)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from adaproj_edge.geometry.analytic import FINE_DETAIL, simulate_surface
+from adaproj_edge.arrays import FloatArray, IntArray
+from adaproj_edge.geometry.analytic import (
+    FINE_DETAIL,
+    _solve_quadratic,
+    simulate_surface,
+    single_patch,
+)
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.threads import apply_thread_policy
 from adaproj_edge.warp.engine import FAST, Backend, WarpSettings
@@ -53,6 +70,71 @@ from adaproj_edge.warp.reference import REFERENCE
 from adaproj_edge.warp.warpmap import Grid, Warp
 
 CONTENT = (640, 400)
+# every surface class of the quality tests, and a saddle
+ALL = (
+    "cylinder-floor",
+    "corner",
+    "cone-wall",
+    "bumps",
+    "waves",
+    "sphere-concave",
+    "sphere-convex",
+    "bowl",
+    "saddle",
+)
+
+
+class Saddle:
+    """A hyperbolic paraboloid ``z = z0 - k (x^2 - y^2)`` facing the projector (doubly
+    curved with negative Gaussian curvature, which no built-in surface has)."""
+
+    name = "saddle"
+    developable = False
+    grid_smooth = True
+
+    def __init__(self, z0: float = 1.6, k: float = 0.6) -> None:
+        self.z0, self.k = z0, k
+
+    def patch(self, points: FloatArray) -> IntArray:
+        """All 0: one smooth patch."""
+        return single_patch(points)
+
+    def intersect(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
+        """Ray parameter t (...,) of the first hit with t > 0, NaN where none."""
+        ox, oy, oz = origins[..., 0], origins[..., 1], origins[..., 2]
+        dx, dy, dz = dirs[..., 0], dirs[..., 1], dirs[..., 2]
+        a = self.k * (dx * dx - dy * dy)
+        b = 2 * self.k * (ox * dx - oy * dy) + dz
+        c = self.k * (ox * ox - oy * oy) + oz - self.z0
+        return _solve_quadratic(a, b, c, far=False)
+
+
+def bench_surface(name: str) -> Surface:
+    """The surface called ``name`` (a built-in one or ``saddle``), at every 2nd pixel."""
+    return simulate_surface(Saddle() if name == "saddle" else name, step=2)
+
+
+def guard_crease_share(surface: Surface, settings: WarpSettings) -> float:
+    """The share of one cold ``compute_warp`` (cProfile, CPU time of the process) spent in
+    ``guard.guard`` and in the meshes' crease analysis (``creases.unfold_measured``
+    called by ``MeshGeometry.build``; the guard's own is counted in the guard's)."""
+    mask = subject_mask(*CONTENT)
+    prof = cProfile.Profile(time.process_time)
+    t0 = time.process_time()
+    prof.enable()
+    compute_warp(surface, CONTENT, mask, settings)
+    prof.disable()
+    total = time.process_time() - t0
+    stats: dict[Any, Any] = pstats.Stats(prof).stats  # type: ignore[attr-defined]
+    part = 0.0
+    for (path, _, func), (_, _, _, cum, callers) in stats.items():
+        if path.endswith("warp/guard.py") and func == "guard":
+            part += cum
+        elif path.endswith("geometry/creases.py") and func == "unfold_measured":
+            for (cpath, _, cfunc), (_, _, _, ccum) in callers.items():
+                if cpath.endswith("warp/mesh.py") and cfunc == "build":
+                    part += ccum
+    return part / max(total, 1e-12)
 
 
 def subject_mask(w: int, h: int) -> np.ndarray:
@@ -96,7 +178,7 @@ def main() -> None:
     apply_thread_policy(1)  # one thread: the figures are per core
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--grids", default="20,40")
-    ap.add_argument("--surfaces", default="sphere-concave,bowl")
+    ap.add_argument("--surfaces", default="sphere-concave,bowl", help="names, or all")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--no-new", action="store_true", help="skip the new surfaces")
     ap.add_argument("--cpu", action="store_true", help="CPU time of the thread, not wall")
@@ -105,8 +187,10 @@ def main() -> None:
     what = "CPU time" if args.cpu else "wall clock"
     print(f"content {CONTENT[0]}x{CONTENT[1]}, mode content, off-centre subject, one core, {what}")
     print(f"{'surface':15s} {'grid':>6} {'':>12} {'ms':>9} {'iters':>5}")
-    for name in args.surfaces.split(","):
-        surface = simulate_surface(name, step=2)
+    names = ALL if args.surfaces == "all" else tuple(args.surfaces.split(","))
+    summary = []
+    for name in names:
+        surface = bench_surface(name)
         for g in args.grids.split(","):
             grid = Grid(int(g), int(g))
             ours = WarpSettings(mode="content", grid=grid)
@@ -127,11 +211,22 @@ def main() -> None:
             row(name, grid, "paper ref", ref, ref_warp)
             row(name, grid, "ours cold", cold, cold_warp)
             row(name, grid, "ours cached", warm, warm_warp)
+            share = guard_crease_share(surface, ours)
             print(
                 f"{name:15s} {grid!s:>6} {'ratio':>12} {ref / cold:8.1f}x cold, "
-                f"{ref / warm:.1f}x cached",
+                f"{ref / warm:.1f}x cached; guard + creases {100 * share:.0f} % of a cold warp",
                 flush=True,
             )
+            summary.append((name, grid, ref, cold, warm, share))
+    print(
+        f"\n{'surface':15s} {'grid':>6} {'ref ms':>8} {'cold ms':>8} {'cached':>8} "
+        f"{'ratio':>7} {'cached':>7} {'guard+crease':>12}"
+    )
+    for name, grid, ref, cold, warm, share in summary:
+        print(
+            f"{name:15s} {grid!s:>6} {1e3 * ref:8.1f} {1e3 * cold:8.1f} {1e3 * warm:8.1f} "
+            f"{ref / cold:6.1f}x {ref / warm:6.1f}x {100 * share:11.0f}%"
+        )
     if args.no_new:
         return
     print("\nnew surfaces, default grid (the engine refines where the surface needs it):")
