@@ -309,18 +309,22 @@ def unfold_measured(
         np.zeros(t_count, dtype=bool),
         flat,
     )
-    for c in np.flatnonzero(keep):  # few: the triangles a crease runs through
-        t = cand[c]
-        rot, origin = _unfolding_rotation(pa[c], na[c], pb[c], nb[c])
-        group_b = [lone[c]] if pair_a[c] else list(pair[c])
-        out[t, group_b] = origin + (tri_pts[t, group_b] - origin) @ rot.T
-        unfolding.folded[t] = True
-        unfolding.normal_a[t], unfolding.point_a[t] = na[c], pa[c]
-        unfolding.normal_b[t], unfolding.point_b[t] = nb[c], pb[c]
-        unfolding.rotation[t], unfolding.origin[t] = rot, origin
-        unfolding.ruled[t] = ruled[c]
-        if not straight[c]:  # a curved crease: soften the side choice
-            unfolding.softness[t] = SOFTNESS * worst[c]
+    # (all at once: one rotation per kept candidate)
+    kept = np.flatnonzero(keep)
+    t = cand[kept]
+    rot, origin = _unfolding_rotations(pa[kept], na[kept], pb[kept], nb[kept])
+    # the corners on side b: the lone corner when the pair is side a, else the pair
+    on_b = (np.arange(3) == lone[kept, None]) == pair_a[kept, None]  # (K, 3)
+    corners = tri_pts[t]  # (K, 3, 3)
+    turned = origin[:, None] + np.einsum("kij,kcj->kci", rot, corners - origin[:, None])
+    out[t] = np.where(on_b[:, :, None], turned, corners)
+    unfolding.folded[t] = True
+    unfolding.normal_a[t], unfolding.point_a[t] = na[kept], pa[kept]
+    unfolding.normal_b[t], unfolding.point_b[t] = nb[kept], pb[kept]
+    unfolding.rotation[t], unfolding.origin[t] = rot, origin
+    unfolding.ruled[t] = ruled[kept]
+    # a curved crease: the side choice softened
+    unfolding.softness[t] = np.where(straight[kept], 0.0, SOFTNESS * worst[kept])
     return unfolding
 
 
@@ -441,16 +445,37 @@ def _pair_plane(
     )
 
 
-def _unfolding_rotation(
+def _unfolding_rotations(
     pa: FloatArray, na: FloatArray, pb: FloatArray, nb: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """Rotation about the line where planes (pa, na) and (pb, nb) meet that turns plane b
-    into plane a (its far side onto a's extension, since both normals face the viewer)."""
+    """Rotations (K, 3, 3) about the lines where planes (pa, na) and (pb, nb) (K, 3 each)
+    meet that turn plane b into plane a (its far side onto a's extension, since both
+    normals face the viewer), and a point (K, 3) of each line."""
     d = np.cross(nb, na)
-    sin = float(np.linalg.norm(d))
-    d = d / sin
-    origin = np.linalg.solve(np.stack([na, nb, d]), np.array([na @ pa, nb @ pb, d @ pa]))
-    angle = float(np.arctan2(sin, float(nb @ na)))
-    k = np.array([[0.0, -d[2], d[1]], [d[2], 0.0, -d[0]], [-d[1], d[0], 0.0]])
-    rot: FloatArray = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+    sin = np.sqrt(np.einsum("kj,kj->k", d, d))
+    d = d / sin[:, None]
+    rhs = np.stack(
+        [
+            np.einsum("kj,kj->k", na, pa),
+            np.einsum("kj,kj->k", nb, pb),
+            np.einsum("kj,kj->k", d, pa),
+        ],
+        axis=1,
+    )
+    origin: FloatArray = np.linalg.solve(np.stack([na, nb, d], axis=1), rhs[:, :, None])[:, :, 0]
+    angle = np.arctan2(sin, np.einsum("kj,kj->k", nb, na))
+    zero = np.zeros_like(sin)
+    k = np.stack(
+        [
+            np.stack([zero, -d[:, 2], d[:, 1]], axis=1),
+            np.stack([d[:, 2], zero, -d[:, 0]], axis=1),
+            np.stack([-d[:, 1], d[:, 0], zero], axis=1),
+        ],
+        axis=1,
+    )
+    rot: FloatArray = (
+        np.eye(3)
+        + np.sin(angle)[:, None, None] * k
+        + (1 - np.cos(angle))[:, None, None] * np.matmul(k, k)
+    )
     return rot, origin

@@ -18,6 +18,7 @@ crease itself.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -146,34 +147,52 @@ class _Plain:
         self.c = [float(v) for v in c]
 
     def height(self, x: Vec) -> tuple[float, Vec]:
-        q = (x[0] - self.o[0], x[1] - self.o[1], x[2] - self.o[2])
-        u, w, y = _dot(q, self.t), _dot(q, self.s), _dot(q, self.n)
-        c = self.c
+        # (written out: called a few thousand times per mesh with a crease; the same
+        # operations in the same order as SidePatch.height)
+        o, t, s, n, c = self.o, self.t, self.s, self.n, self.c
+        q0, q1, q2 = x[0] - o[0], x[1] - o[1], x[2] - o[2]
+        u = q0 * t[0] + q1 * t[1] + q2 * t[2]
+        w = q0 * s[0] + q1 * s[1] + q2 * s[2]
+        y = q0 * n[0] + q1 * n[1] + q2 * n[2]
         f = y - (c[0] + c[1] * u + c[2] * w + c[3] * u * u + c[4] * u * w + c[5] * w * w)
         du = -(c[1] + 2 * c[3] * u + c[4] * w)
         dw = -(c[2] + c[4] * u + 2 * c[5] * w)
-        t, s, n = self.t, self.s, self.n
-        return f, tuple(du * t[k] + dw * s[k] + n[k] for k in range(3))  # type: ignore[return-value]
+        return f, (
+            du * t[0] + dw * s[0] + n[0],
+            du * t[1] + dw * s[1] + n[1],
+            du * t[2] + dw * s[2] + n[2],
+        )
 
 
 def _meet(a: _Plain, b: _Plain, start: Vec, d: Vec) -> Vec | None:
     x = start
+    d0, d1, d2 = d
     for _ in range(NEWTON_STEPS):
         fa, ga = a.height(x)
         fb, gb = b.height(x)
         # solve [ga; gb; d] dx = -(fa, fb, (x - start) . d) by Cramer's rule
-        r = (-fa, -fb, -_dot((x[0] - start[0], x[1] - start[1], x[2] - start[2]), d))
-        c_bd, c_da, c_ab = _cross(gb, d), _cross(d, ga), _cross(ga, gb)
-        det = _dot(ga, c_bd)
+        r0, r1 = -fa, -fb
+        r2 = -((x[0] - start[0]) * d0 + (x[1] - start[1]) * d1 + (x[2] - start[2]) * d2)
+        a0, a1, a2 = ga
+        b0, b1, b2 = gb
+        # gb x d, d x ga, ga x gb
+        e0, e1, e2 = b1 * d2 - b2 * d1, b2 * d0 - b0 * d2, b0 * d1 - b1 * d0
+        f0, f1, f2 = d1 * a2 - d2 * a1, d2 * a0 - d0 * a2, d0 * a1 - d1 * a0
+        g0, g1, g2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        det = a0 * e0 + a1 * e1 + a2 * e2
         if abs(det) < 1e-12:
             return None
-        dx = tuple((r[0] * c_bd[k] + r[1] * c_da[k] + r[2] * c_ab[k]) / det for k in range(3))
-        x = (x[0] + dx[0], x[1] + dx[1], x[2] + dx[2])
-        if abs(fa) + abs(fb) < 1e-13 and max(abs(v) for v in dx) < 1e-13:
+        dx0 = (r0 * e0 + r1 * f0 + r2 * g0) / det
+        dx1 = (r0 * e1 + r1 * f1 + r2 * g1) / det
+        dx2 = (r0 * e2 + r1 * f2 + r2 * g2) / det
+        x = (x[0] + dx0, x[1] + dx1, x[2] + dx2)
+        if abs(fa) + abs(fb) < 1e-13 and max(abs(dx0), abs(dx1), abs(dx2)) < 1e-13:
             break
     fa, _ = a.height(x)
     fb, _ = b.height(x)
-    if not all(np.isfinite(x)) or max(abs(fa), abs(fb)) > 1e-9:
+    if not (math.isfinite(x[0]) and math.isfinite(x[1]) and math.isfinite(x[2])):
+        return None
+    if max(abs(fa), abs(fb)) > 1e-9:
         return None
     return x
 
@@ -207,7 +226,7 @@ def crease_planes(
     ga, gb = pa_.height(o)[1], pb_.height(o)[1]
     na = np.array(ga) / np.sqrt(_dot(ga, ga))
     nb = np.array(gb) / np.sqrt(_dot(gb, gb))
-    line = np.cross(na, nb)
+    line = np.array(_cross(_vec(na), _vec(nb)))  # (as np.cross, in plain floats)
     line /= np.linalg.norm(line)
     ln = _vec(line)
     for side in (-0.5, 0.5):
@@ -287,7 +306,7 @@ def ruled_planes(
         bent_misses += int(must_bend and not wide)
         wide_misses += int(wide)
         t = cand[c]
-        d = np.cross(na[c], nb[c])
+        d = np.array(_cross(_vec(na[c]), _vec(nb[c])))  # (as np.cross, in plain floats)
         d /= np.linalg.norm(d)
         side_b = [lone[c]] if pair_a[c] else [k for k in range(3) if k != lone[c]]
         origin = tri_pts[t].mean(axis=0)
@@ -335,7 +354,7 @@ def ruled_planes(
         # left out of its side's fit, and grouped by its plane with the wrong side);
         # with all on one patch the crease misses the triangle
         ha, hb = np.abs(ca.height(tri_pts[t])[0]), np.abs(cb.height(tri_pts[t])[0])
-        in_b = np.isin(np.arange(3), side_b)
+        in_b = np.array([k in side_b for k in range(3)])
         in_b = np.where((ha <= tol) & (hb <= tol), in_b, hb < ha)
         # (a triangle with no probe on the surface is not explained)
         if met is None or resid.size == 0 or resid.max() > tol or in_b.all() or ~in_b.any():

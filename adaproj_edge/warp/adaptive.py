@@ -41,6 +41,8 @@ needed. Along a column or row that needs no more lines nothing is added.
 
 from __future__ import annotations
 
+import copy
+import hashlib
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -406,13 +408,40 @@ def refine_grid(
 def adaptive_mesh(
     surface: Surface, grid: Grid, cache: WarpCache | None = None, refine: bool = True
 ) -> tuple[MeshGeometry, dict[str, Any]]:
-    """The mesh of ``surface`` on ``grid``, refined by :func:`refine_grid` (``refine``).
+    """The mesh of ``surface`` on ``grid``, refined by :func:`refine_grid` (``refine``);
+    kept in ``cache`` (:meth:`~adaproj_edge.warp.mesh.WarpCache.mesh`) under the
+    surface's :func:`mesh_key`, so another warp of the same surface reuses it (with
+    its crease unfolding and what is memoised on it).
 
     Returns
     -------
     The mesh, and meta: ``mesh`` (the refined grid) and ``refined`` (how many columns
     and rows each base column and row became), empty when nothing was refined.
     """
+    if cache is None:
+        return _adaptive_mesh(surface, grid, None, refine)
+    mesh, meta = cache.mesh(
+        mesh_key(surface, grid, refine), lambda: _adaptive_mesh(surface, grid, cache, refine)
+    )
+    return mesh, copy.deepcopy(meta)
+
+
+def mesh_key(surface: Surface, grid: Grid, refine: bool) -> bytes:
+    """What the adaptive mesh of ``surface`` on ``grid`` depends on, as a cache key: the
+    surface's points (a digest of their bytes), its lattice's shape, the projector and
+    the grid."""
+    proj = surface.projector
+    points = np.ascontiguousarray(surface.points)
+    digest = hashlib.blake2b(points.tobytes(), digest_size=16)
+    digest.update(np.ascontiguousarray(proj.K, dtype=np.float64).tobytes())
+    head = f"adaptive:{refine}:{grid.cols}x{grid.rows}:{points.shape}:{proj.width}x{proj.height}:"
+    return head.encode() + digest.digest()
+
+
+def _adaptive_mesh(
+    surface: Surface, grid: Grid, cache: WarpCache | None, refine: bool
+) -> tuple[MeshGeometry, dict[str, Any]]:
+    """:func:`adaptive_mesh`, made."""
     mesh = MeshGeometry.build(surface, grid, cache)
     if not refine:
         return mesh, {}

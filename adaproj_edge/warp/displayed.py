@@ -81,8 +81,13 @@ class DisplaySamples:
         layout = layout.onto_mesh(mesh.grid_uv, proj, depth, step)
         bary = np.stack([layout.l0, layout.l1, layout.l2])
         folded = _folded(mesh)
-        # the creases unfolded once: for the weights and to find the samples' sides
-        unfolding = grid_unfolding(mesh.grid_uv, depth, proj, surface) if folded.any() else None
+        # the creases unfolded once: for the weights and to find the samples' sides (the
+        # mesh's own when it is the whole grid's: made from the same corners and probes)
+        unfolding = None
+        if folded.any():
+            unfolding = mesh.memo.get("grid unfolding")
+            if unfolding is None:
+                unfolding = grid_unfolding(mesh.grid_uv, depth, proj, surface)
         grid_corners, w = surface_weights(
             mesh.grid_uv, depth, proj, surface, layout.tri, bary, points, unfolding
         )

@@ -82,17 +82,42 @@ class Topology:
 
 
 class WarpCache:
-    """Topologies seen recently, so repeated warps of a scene skip the set-up work.
+    """Topologies and meshes seen recently, so repeated warps of a scene skip the set-up
+    work.
 
     Owned by the caller (the device keeps one); :func:`MeshGeometry.build` without one
-    starts from scratch.
+    starts from scratch. Topologies are keyed by which grid triangles meet the surface;
+    whole meshes (:meth:`mesh`: the adaptive mesh with its crease unfolding, and what is
+    memoised on it, the guard's display samples among them) by the surface's own
+    points, so a surface measured again, or from a moved device, is a new key.
     """
 
-    def __init__(self, size: int = 8) -> None:
+    def __init__(self, size: int = 8, meshes: int = 4) -> None:
         self.size = size
+        self.mesh_size = meshes
         self._items: OrderedDict[bytes, Topology] = OrderedDict()
+        self._meshes: OrderedDict[bytes, Any] = OrderedDict()
         self.hits = 0
         self.misses = 0
+        self.mesh_hits = 0
+        self.mesh_misses = 0
+
+    def mesh(self, key: bytes, make: Callable[[], T]) -> T:
+        """The cached mesh (or whatever ``make`` gives) under ``key``, made by ``make()``
+        and kept (the least recently used one going beyond ``mesh_size``) when it is not
+        there."""
+        if key in self._meshes:
+            self._meshes.move_to_end(key)
+            self.mesh_hits += 1
+            out: T = self._meshes[key]
+            return out
+        self.mesh_misses += 1
+        made = make()
+        if self.mesh_size > 0:
+            self._meshes[key] = made
+            while len(self._meshes) > self.mesh_size:
+                self._meshes.popitem(last=False)
+        return made
 
     def topology(self, key: bytes, make: Callable[[], Topology]) -> Topology:
         """The cached topology under ``key``, made by ``make()`` (and kept, the least recently
@@ -136,7 +161,9 @@ class MeshGeometry:
         sides (:mod:`~adaproj_edge.geometry.ruled_crease`).
     memo : what callers derive from this geometry alone, made once (:meth:`remember`;
         the upright angle's factors, the display's samples of
-        :mod:`~adaproj_edge.warp.displayed`).
+        :mod:`~adaproj_edge.warp.displayed`); where every grid triangle was kept and
+        looked at for every kind of crease, ``"grid unfolding"``: the crease unfolding
+        of the grid's triangles (:func:`~adaproj_edge.render.seams.grid_unfolding`).
     """
 
     grid: Grid
@@ -299,7 +326,15 @@ class MeshGeometry:
         curved = unfolding.folded & (unfolding.softness > 0)
         folded_t = np.asarray(unfolding.folded, dtype=bool)
         ruled = np.asarray(unfolding.ruled, dtype=bool)
-        return cls(grid, grid_uv, pts, topo, coords, sums / counts, shapes, curved, folded_t, ruled)
+        memo: dict[str, Any] = {}
+        if may_rule is None and rows.size == all_tris.shape[0]:
+            # every grid triangle kept, each looked at for a straight crease between
+            # curved sides: this is the grid's own unfolding (the display's, made from
+            # the same corners and probes), kept for it
+            memo["grid unfolding"] = unfolding
+        return cls(
+            grid, grid_uv, pts, topo, coords, sums / counts, shapes, curved, folded_t, ruled, memo
+        )
 
 
 def planar_shapes(tri_pts: FloatArray) -> FloatArray:
