@@ -57,7 +57,10 @@ XFAIL: dict[str, dict[str, str]] = {
     "test_upright": {
         "nyu_basement/wardrobe": "11.1 deg on a wall",
         "sun3d_corridor/cubicles": "6.9 deg on a wall",
-        "tum_desk/partition-shelf": "3.0 deg on a wall",
+        # measured on a tilted estimate: the device's snapped plane is 2.7 deg from the
+        # harness's fit to the ~400 raw points under the subject (gravity projected on
+        # the two differs 2.7 deg), a fit itself 3.3 deg from the partition box's
+        "tum_desk/partition-shelf": "3.0 deg on a wall (2.7 deg of it the planes' tilt)",
     },
     "test_planar_distortion": {
         "sun3d_corridor/floor": "angle 0.110, size 0.012",

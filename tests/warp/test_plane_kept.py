@@ -93,3 +93,33 @@ def test_a_snapped_wall_stays_undistorted_beside_a_bump(mode: str) -> None:
     assert before[0] > 0.01 and before[1] > 0.01  # the dome does distort the wall
     assert after[0] < 0.1 * before[0] and after[0] < 0.005, (before, after)
     assert after[1] < 0.1 * before[1] and after[1] < 0.02, (before, after)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="the bent rest's votes turn the content 1.6-2.9 deg on the held wall; weighting the"
+    " wall's votes fixes it but costs the real partition's size line (0.019 -> 0.022)",
+)
+@pytest.mark.parametrize("up", [(0.4, -1.0, 0.0), (-0.5, -1.0, 0.2)])
+def test_a_snapped_wall_stays_upright_beside_a_bump(up: tuple[float, float, float]) -> None:
+    """A rolled, pitched device (gravity's up ``up`` in frame P): the content's vertical on
+    the snapped wall is gravity's there. The plane-held warp bends the dome more, and its
+    triangles' votes for "down" turn with it (1.6-2.9 deg on the wall when every
+    triangle voted alike); the wall's triangles should vote at their weight in the solve.
+    Measured independently of the warp's mesh: an affine fit of the analytic wall's points
+    (rays of the grid's vertices met with the wall) against their content positions over
+    the frame's left half (all wall: the dome covers x > 0.55 W), its -y against gravity
+    projected on the wall. Tolerance 0.5 deg: the wall keeps about a part in 100 of the
+    residual (0.1 deg here), well under the issue's 2 deg line and the 1.6 deg before."""
+    surface, _ = wall_with_a_bump()
+    snapped = Surface(surface.points, P, {PLANES_KEY: [[*NORMAL, OFFSET]]})
+    warp = compute_warp(snapped, (800, 600), None, WarpSettings(mode="content", up=up))
+    uv = warp.grid_uv.reshape(-1, 2)
+    X = P.rays(uv) * wall_depth(P.rays(uv))[:, None]
+    xy = warp.image_xy.reshape(-1, 2)
+    left = np.isfinite(xy).all(axis=1) & (uv[:, 0] < 0.5 * P.width)
+    coef = np.linalg.lstsq(np.c_[xy[left], np.ones(left.sum())], X[left], rcond=None)[0]
+    g = np.asarray(up) / np.linalg.norm(up)
+    ref, shown = g - (g @ NORMAL) * NORMAL, -coef[1] + (coef[1] @ NORMAL) * NORMAL
+    cos = float(ref @ shown / (np.linalg.norm(ref) * np.linalg.norm(shown)))
+    assert np.degrees(np.arccos(min(1.0, cos))) < 0.5
