@@ -33,6 +33,11 @@ The figures are computed from the raw points alone (nothing of the code under te
   forward direction projected on it (a floor or a table: away from the device); on the
   region's plane for a planar region, else on the dominant plane (RANSAC) of the real
   points under the subject shown (the poster's salient content);
+- the plane fit's spread (:func:`plane_spread`): the angle figure read between two
+  robust fits to halves of the region's raw points, content laid exactly on one and
+  read on the other (the larger of a left/right and a top/bottom split). A planar
+  region's angle figure cannot be verified below it: seen grazing an error of the
+  plane's normal of d radians reads as about tan(incidence) d of angle;
 - across a depth jump: shown samples next to a shown sample (1 or 2 samples away) whose
   real point lies more than ``JUMP_M`` away nearly along the ray (within
   ``JUMP_RAY_DEG``: a curtain between a silhouette and what is behind it, not a slanted
@@ -454,6 +459,7 @@ class Figures:
     bridging_pct: float = float("nan")
     no_object_pct: float = float("nan")
     plane_triangles: int = 0
+    spread: float = float("nan")  # the angle measure between two fits of the region's plane
     upright_rule: str = ""  # the plane the upright figure is measured on: wall or floor
     kind: str = ""  # what the device showed: content-aware, content-free, ...
     warp_ok: bool | None = None
@@ -614,6 +620,51 @@ def salient(xy: FloatArray, item: Item | None = None) -> NDArray[np.bool_]:
     return np.asarray(ok & (cmap[y, x] >= item.content_map.threshold), bool)
 
 
+def angle_size(J: FloatArray) -> tuple[float, float]:
+    """(mean angle distortion sigma1 / sigma2 - 1, size inconsistency: std of
+    log sqrt(sigma1 sigma2)) of Jacobians ``J`` (n, 3, 2)."""
+    sv = np.linalg.svd(J, compute_uv=False)
+    return float(np.mean(sv[:, 0] / sv[:, 1] - 1.0)), float(
+        np.std(0.5 * np.log(sv[:, 0] * sv[:, 1]))
+    )
+
+
+def plane_spread(frame: RealFrame, region: Region) -> tuple[float, float, float]:
+    """(angle, size, degrees between the fits) the measure reads between two robust plane
+    fits of the raw points of ``region.plane_box``: its left and right halves, then its top
+    and bottom halves (the pair with the larger angle), over the projector's samples on
+    the region's plane (the rig of :func:`rig`). Content laid exactly on one fit, read on
+    the other: what the planar figure cannot resolve."""
+    cal = rig(frame, region)
+    K = cal.projector.K
+    uv, real = real_samples(frame, cal)
+    u0, v0, u1, v1 = region.plane_box
+    pts = to_p(cal, box_points(frame, region.plane_box))
+    tol = plane_tol(frame, float(np.nanmedian(pts[:, 2])))
+    n, d, inl = fit_plane(pts, tol)
+    with np.errstate(invalid="ignore"):
+        on = np.abs(real @ n - d) < tol
+    v, u = np.mgrid[v0:v1, u0:u1]
+    u, v = u.reshape(-1), v.reshape(-1)
+    e1 = np.cross(n, [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    worst = (0.0, 0.0, 0.0)
+    for coord in (u, v):
+        half = coord < np.median(coord[inl])
+        na, da, _ = fit_plane(pts[inl & half], tol)
+        nb, db, _ = fit_plane(pts[inl & ~half], tol)
+        xa, xb = plane_hits(na, da, uv, K), plane_hits(nb, db, uv, K)
+        keep = on & np.isfinite(xa).all(axis=-1) & np.isfinite(xb).all(axis=-1)
+        flat = np.stack([xa @ e1, xa @ e2], axis=-1)  # content: the first fit, unrolled
+        J = max((jacobians(xb, keep, flat * s)[0] for s in ([1, 1], [1, -1])), key=len)
+        a, sz = angle_size(J)
+        deg = float(np.degrees(np.arccos(min(1.0, abs(float(na @ nb))))))
+        if a > worst[0]:
+            worst = (a, sz, deg)
+    return worst
+
+
 def figures(
     frame: RealFrame, region: Region, render: bool = True, runtime: bool = True
 ) -> tuple[Figures, DeviceRun]:
@@ -662,7 +713,6 @@ def figures(
         return fig, run
     fig.upright_deg = upright_error(J, n, fig.upright_rule, run.up_p)
     if region.planar:
-        sv = np.linalg.svd(J, compute_uv=False)
-        fig.angle = float(np.mean(sv[:, 0] / sv[:, 1] - 1.0))
-        fig.size = float(np.std(0.5 * np.log(sv[:, 0] * sv[:, 1])))
+        fig.angle, fig.size = angle_size(J)
+        fig.spread = plane_spread(frame, region)[0]
     return fig, run

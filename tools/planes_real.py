@@ -10,10 +10,9 @@ For every planar region of ``tests/fixtures/real/`` (run through the device as
   what the warp leaves on the surface it was given (a shown figure well above it is
   the surface's error; one close to it, the warp's);
 - ``spread``: what the measure reads between two robust plane fits of the same raw
-  points (the box's left and right halves, then its top and bottom halves; the larger
-  of the two): content laid exactly on one read against the other. A planar region's
-  figure cannot be verified below this; seen grazing it is large, since an error of
-  the plane's normal of d radians reads as about tan(incidence) d of angle.
+  points (``tests/realframes.py``'s ``plane_spread``). A planar region's figure cannot
+  be verified below this; seen grazing it is large, since an error of the plane's
+  normal of d radians reads as about tan(incidence) d of angle.
 
 Always exits 0: it measures, the tests assert.
 
@@ -35,55 +34,17 @@ from tests.realframes import (
     FIXTURES,
     RealFrame,
     Region,
+    angle_size,
     box_points,
     figures,
     fit_plane,
     jacobians,
     load_frames,
-    plane_hits,
+    plane_spread,
     plane_tol,
     real_samples,
-    rig,
     to_p,
 )
-
-
-def _angle_size(J: np.ndarray) -> tuple[float, float]:
-    sv = np.linalg.svd(J, compute_uv=False)
-    return float(np.mean(sv[:, 0] / sv[:, 1] - 1)), float(np.std(0.5 * np.log(sv[:, 0] * sv[:, 1])))
-
-
-def spread(frame: RealFrame, region: Region) -> tuple[float, float, float]:
-    """(angle, size, degrees between the fits) between the plane fits of the box's
-    halves, the larger pair, over the projector's samples on the region's plane."""
-    cal = rig(frame, region)
-    K = cal.projector.K
-    uv, real = real_samples(frame, cal)
-    u0, v0, u1, v1 = region.plane_box
-    pts = to_p(cal, box_points(frame, region.plane_box))
-    tol = plane_tol(frame, float(np.nanmedian(pts[:, 2])))
-    n, d, inl = fit_plane(pts, tol)
-    with np.errstate(invalid="ignore"):
-        on = np.abs(real @ n - d) < tol
-    v, u = np.mgrid[v0:v1, u0:u1]
-    u, v = u.reshape(-1), v.reshape(-1)
-    e1 = np.cross(n, [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(n, e1)
-    worst = (0.0, 0.0, 0.0)
-    for coord in (u, v):
-        half = coord < np.median(coord[inl])
-        na, da, _ = fit_plane(pts[inl & half], tol)
-        nb, db, _ = fit_plane(pts[inl & ~half], tol)
-        xa, xb = plane_hits(na, da, uv, K), plane_hits(nb, db, uv, K)
-        keep = on & np.isfinite(xa).all(axis=-1) & np.isfinite(xb).all(axis=-1)
-        flat = np.stack([xa @ e1, xa @ e2], axis=-1)
-        J = max((jacobians(xb, keep, flat * s)[0] for s in ([1, 1], [1, -1])), key=len)
-        a, s = _angle_size(J)
-        deg = float(np.degrees(np.arccos(min(1.0, abs(float(na @ nb))))))
-        if a > worst[0]:
-            worst = (a, s, deg)
-    return worst
 
 
 def own(frame: RealFrame, region: Region) -> tuple[float, float, float, float]:
@@ -102,7 +63,7 @@ def own(frame: RealFrame, region: Region) -> tuple[float, float, float, float]:
     X = run.surface.points_at(uv).astype(np.float64)
     keep = on & np.isfinite(xy).all(axis=-1) & np.isfinite(X).all(axis=-1)
     J, _ = jacobians(X, keep, xy)
-    return (fig.angle, fig.size, *_angle_size(J))
+    return (fig.angle, fig.size, *angle_size(J))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -117,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
             if not region.planar:
                 continue
             sa, ss, oa, os_ = own(frame, region)
-            pa, ps, deg = spread(frame, region)
+            pa, ps, deg = plane_spread(frame, region)
             print(
                 f"{frame.name + '/' + region.name:28} {sa:6.3f} {ss:6.3f} {oa:6.3f} {os_:6.3f} "
                 f"{pa:6.3f} {ps:6.3f}  {deg:.2f} deg",

@@ -23,6 +23,10 @@ plane by no more than that slow error is planar whatever its bend ratio. Curved
 surfaces (a column, a dome, a bowl) never meet that on a large piece and are left as
 they are.
 
+The snapped surface's ``meta`` lists the planes (``PLANES_KEY``: ``[nx, ny, nz, d]``
+each), so the warp can keep them undistorted (:func:`plane_equations`,
+:attr:`~adaproj_edge.warp.mesh.MeshGeometry.planar`).
+
 Pure: arrays in, arrays out.
 """
 
@@ -35,8 +39,13 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from adaproj_edge.arrays import FloatArray
+from adaproj_edge.errors import SurfaceError
 from adaproj_edge.geometry.depth.sensor import SensorModel
 from adaproj_edge.geometry.surface import Surface
+
+PLANES_KEY = "plane_equations"  # a snapped surface's meta: its planes, [nx, ny, nz, d] each
+ON_PLANE_REL = 1e-4  # a point this close to a plane (of its depth) lies on it (float32's
+# rounding of a snapped node is ~1e-7 of its depth; the sensor's noise is ~1e-3)
 
 
 @dataclass(frozen=True)
@@ -292,6 +301,36 @@ def snap_planes(
         take = use & (gap < best)
         z = np.where(take, zk, z)
         best = np.where(take, gap, best)
-    meta = {**surface.meta, "planes": len(planes)}
+    meta = {
+        **surface.meta,
+        "planes": len(planes),
+        PLANES_KEY: [[*(float(x) for x in q.normal), q.offset] for q in planes],
+    }
     points = (rays * z[..., None]).astype(np.float32)
     return Surface(points, p, meta), planes
+
+
+def plane_equations(meta: dict[str, object]) -> FloatArray:
+    """The planes (k, 4) ``[n, d]`` (unit ``n``, ``n . X = d``) a surface's ``meta``
+    lists (:func:`snap_planes` writes them; none: (0, 4)); raises
+    :class:`~adaproj_edge.errors.SurfaceError` when the entry is not such a list."""
+    raw = meta.get(PLANES_KEY)
+    if raw is None:
+        return np.zeros((0, 4))
+    try:
+        eq = np.array(raw, dtype=np.float64).reshape(-1, 4)
+    except (TypeError, ValueError):
+        raise SurfaceError(f"surface meta {PLANES_KEY}: not a list of [nx, ny, nz, d]") from None
+    norm = np.linalg.norm(eq[:, :3], axis=1) if eq.size else np.zeros(0)
+    if not np.isfinite(eq).all() or np.any(np.abs(norm - 1.0) > 1e-6):
+        raise SurfaceError(f"surface meta {PLANES_KEY}: not unit normals with finite offsets")
+    return eq
+
+
+def on_planes(points: FloatArray, equations: FloatArray) -> NDArray[np.bool_]:
+    """(n, k): whether each of ``points`` (n, 3) lies on each plane of ``equations``
+    (k, 4), within ``ON_PLANE_REL`` of its depth (a node on a crease lies on two)."""
+    tol = ON_PLANE_REL * np.abs(points[:, 2])
+    with np.errstate(invalid="ignore"):
+        near = np.abs(points @ equations[:, :3].T - equations[:, 3]) < tol[:, None]
+    return np.asarray(near, dtype=bool)

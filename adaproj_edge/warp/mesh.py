@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, TypeVar
 
 import numpy as np
@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.creases import unfold_measured
+from adaproj_edge.geometry.planes import on_planes, plane_equations
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import (
     grid_triangles,
@@ -155,6 +156,9 @@ class MeshGeometry:
         (metres), oriented as the content is (y down).
     curved : (T,) bool, the triangles a curved crease runs through (their unfolding is
         only approximate: :mod:`~adaproj_edge.warp.adaptive` refines there).
+    planar : (T,) bool, the triangles whose corners all lie on one of the planes the
+        surface was snapped to (:func:`~adaproj_edge.geometry.planes.snap_planes`, listed
+        in its meta): the warp keeps them nearly undistorted.
     folded : (T,) bool, the triangles unfolded about a crease (straight or curved); the
         others' shapes are their own corners'.
     ruled : (T,) bool, those of them unfolded about a straight crease between curved
@@ -176,6 +180,7 @@ class MeshGeometry:
     curved: NDArray[np.bool_]
     folded: NDArray[np.bool_]
     ruled: NDArray[np.bool_]
+    planar: NDArray[np.bool_]
     memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     def remember(self, name: str, make: Callable[[], T]) -> T:
@@ -229,6 +234,21 @@ class MeshGeometry:
     def uv(self) -> FloatArray:
         """(n, 2) pixel positions of the compact vertices."""
         return self.grid_uv.reshape(-1, 2)[self.verts]
+
+    def without_planes(self) -> MeshGeometry:
+        """The mesh with no triangle :attr:`planar` (the solves' uniform weights)."""
+        return replace(self, planar=np.zeros_like(self.planar), memo={})
+
+    @property
+    def planar_edges(self) -> NDArray[np.bool_]:
+        """(E,) bool, the edges of :attr:`planar` triangles."""
+
+        def make() -> NDArray[np.bool_]:
+            out = np.zeros(self.edges.shape[0], dtype=bool)
+            out[self.topology.inverse.reshape(3, -1)[:, self.planar].ravel()] = True
+            return out
+
+        return self.remember("planar edges", make)
 
     @property
     def curved_cells(self) -> IntArray:
@@ -326,6 +346,7 @@ class MeshGeometry:
         curved = unfolding.folded & (unfolding.softness > 0)
         folded_t = np.asarray(unfolding.folded, dtype=bool)
         ruled = np.asarray(unfolding.ruled, dtype=bool)
+        planar = _planar(pts, topo.cand, plane_equations(surface.meta)) & ~folded_t
         memo: dict[str, Any] = {}
         if may_rule is None and rows.size == all_tris.shape[0]:
             # every grid triangle kept, each looked at for a straight crease between
@@ -333,8 +354,29 @@ class MeshGeometry:
             # the same corners and probes), kept for it
             memo["grid unfolding"] = unfolding
         return cls(
-            grid, grid_uv, pts, topo, coords, sums / counts, shapes, curved, folded_t, ruled, memo
+            grid,
+            grid_uv,
+            pts,
+            topo,
+            coords,
+            sums / counts,
+            shapes,
+            curved,
+            folded_t,
+            ruled,
+            planar,
+            memo,
         )
+
+
+def _planar(pts: FloatArray, cand: IntArray, equations: FloatArray) -> NDArray[np.bool_]:
+    """(T,) whether all three corners ``cand`` (T, 3) (indices into ``pts`` (N, 3)) of
+    a triangle lie on one plane of ``equations`` (k, 4)."""
+    if equations.shape[0] == 0:
+        return np.zeros(cand.shape[0], dtype=bool)
+    on = on_planes(pts, equations)[cand]  # (T, 3, k)
+    out: NDArray[np.bool_] = np.all(on, axis=1).any(axis=1)
+    return out
 
 
 def planar_shapes(tri_pts: FloatArray) -> FloatArray:

@@ -362,10 +362,19 @@ class WarpPlanner:
         first: Solved | None = None  # the solve a repair starts from (not refined)
         try:
             mesh, extra = self._mesh(surface, settings)
-            v_conf = self.backend.conformal(mesh)
-            v, _ = self.backend.content_free(mesh, v_conf, settings.lam)
-            first = None if extra else Solved(mesh, v_conf, v)
-            return self._start_of(surface, surface, mesh, extra, v_conf, v, content_size, settings)
+            for held in (mesh, mesh.without_planes()) if mesh.planar.any() else (mesh,):
+                # the snapped planes held undistorted, unless that folds the rest: then
+                # the uniform weights (a wall seen grazing beside a floor takes it all)
+                try:
+                    v_conf = self.backend.conformal(held)
+                    v, _ = self.backend.content_free(held, v_conf, settings.lam)
+                    first = None if extra else Solved(held, v_conf, v)
+                    return self._start_of(
+                        surface, surface, held, extra, v_conf, v, content_size, settings
+                    )
+                except WarpError as e:
+                    error = e
+            raise error
         except WarpError as e:
             down: Down = [("content-free", str(e))]
         b = self.backend

@@ -19,6 +19,20 @@ from adaproj_edge.warp import terms
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.system import BandedLeastSquares, ComplexLeastSquares, Rows
 
+# A large plane the surface was snapped to (a wall, a floor) is what a viewer looks at;
+# the chair leg in front of it is not. Its triangles (``MeshGeometry.planar``) weigh this
+# much more in E_a in every solve, and in the content-free and content-aware solves their
+# edges' length rows weigh this much more too, so the distortion the rest of the
+# footprint forces goes onto the rest (the paper's idea, with the plane as a subject).
+PLANE_SHAPE = 100.0
+PLANE_SIZE = 30.0
+
+
+def plane_roles(mesh: MeshGeometry, per_role: int) -> FloatArray:
+    """(T * 3 * per_role,) 1.0 on the E_a rows of the planar triangles (rows ordered
+    triangle, role, then ``per_role`` components), else 0."""
+    return np.repeat(mesh.planar.astype(np.float64), 3 * per_role)
+
 
 @dataclass(frozen=True)
 class ContentAwareWeights:
@@ -31,6 +45,10 @@ class ContentAwareWeights:
     size_floor : weight of the non-salient edges' rows toward their previous vectors
         (they only steady the iteration: they vanish at its fixed point).
     damping : weight of ``|V_i - V_i^(n)|^2`` on every vertex, per unit edge length^2.
+    plane : extra E_a weight on the triangles on a snapped plane (``mesh.planar``), as
+        in the conformal and content-free solves (:data:`PLANE_SHAPE`).
+    plane_size : weight of those triangles' edges' length rows (toward their length on
+        the surface at the salient region's scale; :data:`PLANE_SIZE`).
 
     Defaults: the salient region is made a few hundred times stiffer than the rest, in
     shape (``conformal_salient``) and in size (``size``); shape weighs more than size,
@@ -46,6 +64,8 @@ class ContentAwareWeights:
     size: float = 100.0
     size_floor: float = 0.02
     damping: float = 1e-4
+    plane: float = PLANE_SHAPE
+    plane_size: float = PLANE_SIZE
 
 
 def gauge_vertices(mesh: MeshGeometry) -> tuple[int, int]:
@@ -72,8 +92,9 @@ def _pin_positions(mesh: MeshGeometry, a: int, b: int) -> tuple[FloatArray, Floa
     return np.zeros(2), d * float(np.linalg.norm(p[b] - p[a]))
 
 
-def solve_conformal(mesh: MeshGeometry) -> FloatArray:
-    """E_a only, uniform weights, two vertices pinned: the iLamps-style conformal warp.
+def solve_conformal(mesh: MeshGeometry, plane: float = PLANE_SHAPE) -> FloatArray:
+    """E_a only, two vertices pinned: the iLamps-style conformal warp; uniform weights
+    but on the triangles of a snapped plane (``mesh.planar``), ``1 + plane``.
 
     Solved over complex unknowns with the content-aware step's system
     (:func:`complex_system`: vertex a pinned; one set-up serves both): E_a at weight 1,
@@ -90,7 +111,7 @@ def solve_conformal(mesh: MeshGeometry) -> FloatArray:
     n_conf, n_edge, _ = rows.sizes
     at_b = n_conf + n_edge + b  # b's position row
     weights = np.zeros(sum(rows.sizes))
-    weights[:n_conf] = 1.0
+    weights[:n_conf] = 1.0 + plane * plane_roles(mesh, 1)
     weights[at_b] = 1.0
     const = np.zeros(sum(rows.sizes), dtype=np.complex128)
     const[at_b] = zb
@@ -177,9 +198,15 @@ def directed(edges: IntArray, lengths: FloatArray) -> tuple[IntArray, FloatArray
 
 
 def solve_content_free(
-    mesh: MeshGeometry, v_conformal: FloatArray, lam: float
+    mesh: MeshGeometry,
+    v_conformal: FloatArray,
+    lam: float,
+    plane: float = PLANE_SHAPE,
+    plane_size: float = PLANE_SIZE,
 ) -> tuple[FloatArray, FloatArray]:
-    """E' = E_a + lambda E_r with all weights 1 (paper eq. 7, the initial solution).
+    """E' = E_a + lambda E_r with all weights 1 (paper eq. 7, the initial solution), but
+    on a snapped plane's triangles (``mesh.planar``): E_a ``1 + plane``, their edges'
+    E_r rows ``1 + plane_size`` (one scale over the plane).
 
     Edge directions v_ij come from the conformal solution (the two-step linearisation
     of §4.2); the same two vertices as in the conformal solve stay pinned.
@@ -196,11 +223,12 @@ def solve_content_free(
     ]
     rows = Rows.concat(blocks)
     l2 = float(np.mean(mesh.lengths**2))
+    on_plane = mesh.planar_edges.astype(np.float64)
     weights = np.concatenate(
         [
-            np.ones(blocks[0].rhs.size),
-            np.full(blocks[1].rhs.size, lam),
-            np.full(blocks[2].rhs.size, lam * 2.0 * l2),  # (w_i + w_j) = 2
+            1.0 + plane * plane_roles(mesh, 2),
+            lam * (1.0 + plane_size * np.repeat(np.tile(on_plane, 2), 2)),
+            lam * 2.0 * l2 * (1.0 + plane_size * on_plane),  # (w_i + w_j) = 2
         ]
     )
     a, b = gauge_vertices(mesh)
@@ -222,13 +250,15 @@ class ContentAwareSolver:
 
     Energy, for binary saliency w (paper eq. 5/8) at the current iterate V^(n):
 
-    ``sum_roles (1 + c w_apex) |E_a residual|^2``
-    ``+ size sum_edges (w_i + w_j) |V_i - V_j - l_ij v_ij|^2``
+    ``sum_roles (1 + c w_apex + plane p_t) |E_a residual|^2``
+    ``+ sum_edges (size (w_i + w_j) + 2 plane_size p_ij) |V_i - V_j - l_ij v_ij|^2``
     ``+ floor sum_edges (2 - w_i - w_j) |V_i - V_j - (V_i^(n) - V_j^(n))|^2``
     ``+ L^2 damping sum_i |V_i - V_i^(n)|^2``
 
     with ``v_ij`` the edge's unit direction in V^(n) (re-linearised every step, as in
-    as-rigid-as-possible deformation) and L the mean edge length. The last two terms
+    as-rigid-as-possible deformation), L the mean edge length, and ``p`` 1 on the
+    triangles (edges) of a snapped plane (``mesh.planar``): a wall is held like a
+    subject. The last two terms
     vanish at a fixed point (they only steady the iteration), so the alternation
     converges to a stationary point of
     ``sum (1 + c w) |E_a|^2 + size sum (w_i + w_j) (|V_i - V_j| - l_ij)^2``.
@@ -257,6 +287,8 @@ class ContentAwareSolver:
         self.l2 = float(np.mean(mesh.lengths**2))
         self.apex = mesh.tris.reshape(-1)  # rows are (triangle, role): role k's apex is k
         self._const = np.zeros(sum(self.sizes), dtype=np.complex128)
+        self._plane_roles = plane_roles(mesh, 1)
+        self._plane_edges = mesh.planar_edges.astype(np.float64)
         self._w: FloatArray | None = None
         self._length_share = self._keep_share = self._row_weights = np.zeros(0)
 
@@ -267,11 +299,17 @@ class ContentAwareSolver:
         both = w[ei] + w[ej]
         return np.concatenate(
             [
-                1.0 + cw.conformal_salient * w[self.apex],
-                cw.size * both + cw.size_floor * (2.0 - both),
+                1.0 + cw.conformal_salient * w[self.apex] + cw.plane * self._plane_roles,
+                self._size_weight(both) + cw.size_floor * (2.0 - both),
                 np.full(self.mesh.n, self.l2 * cw.damping),
             ]
         )
+
+    def _size_weight(self, both: FloatArray) -> FloatArray:
+        """The edges' length rows' weight for ``both`` (E,) = w_i + w_j."""
+        cw = self.weights
+        out: FloatArray = cw.size * both + 2.0 * cw.plane_size * self._plane_edges
+        return out
 
     def _use(self, w: FloatArray) -> None:
         """Make the system's factorisation the one for saliency ``w`` (the system is
@@ -279,7 +317,7 @@ class ContentAwareSolver:
         if self._w is None or not np.array_equal(self._w, w):
             cw, edges = self.weights, self.mesh.edges
             both = w[edges[:, 0]] + w[edges[:, 1]]
-            w_size = cw.size * both
+            w_size = self._size_weight(both)
             w_floor = cw.size_floor * (2.0 - both)
             # the edge rows' target mixes the length target and the edge as it is
             self._length_share = w_size * self.mesh.lengths / (w_size + w_floor)

@@ -45,24 +45,30 @@ def _id(frame: RealFrame, region: Region) -> str:
 # Today's misses, with today's figure (`tools/bench_real.py --no-render`): every region
 # gets a picture, without a WarpError, and `adaproj warp` agrees; what is left is the
 # upright on walls the device reconstructs with shear and on a cluttered wardrobe,
-# distortion on real planes, content on holes in the depth and across a few small jumps.
-# The planes themselves are snapped (the sensor's steps and slow error allowed for);
-# what their figures keep is the distortion the warp spreads onto them from the rest of
-# the footprint (a region's plane alone, exact, reads 0.000) and, seen grazing, the
-# plane fit's own spread (two robust fits to halves of one box's raw points differ by
-# 0.5-3 deg: 0.02-0.16 of angle at 60-73 deg).
+# distortion on two planes seen grazing, content on holes in the depth and across a few
+# small jumps. The planes are snapped (the sensor's steps and slow error allowed for) and
+# the warp holds them undistorted, putting what the rest of the footprint forces on the
+# rest (a region's plane alone, exact, reads 0.000). The corridor's floor keeps the
+# uniform weights (held undistorted, the grazing wall beside it folds); on its wall the
+# device snaps two planes where the harness fits one. Seen grazing, the plane fit's own
+# spread (two robust fits to halves of one box's raw points differ by 0.5-3 deg) reads
+# 0.04-0.16 of angle: the measurable line is the angle within 0.02 of it.
 XFAIL: dict[str, dict[str, str]] = {
     "test_upright": {
         "nyu_basement/wardrobe": "11.1 deg on a wall",
-        "nyu_basement/wall-floor": "2.1 deg on a wall",
         "sun3d_corridor/cubicles": "6.9 deg on a wall",
+        # measured on a tilted estimate: the device's snapped plane is 2.7 deg from the
+        # harness's fit to the ~400 raw points under the subject (gravity projected on
+        # the two differs 2.7 deg), a fit itself 3.3 deg from the partition box's
+        "tum_desk/partition-shelf": "3.0 deg on a wall (2.7 deg of it the planes' tilt)",
     },
     "test_planar_distortion": {
-        "nyu_basement/floor": "angle 0.024, size 0.084",
-        "sun3d_corridor/floor": "angle 0.102, size 0.010",
-        "sun3d_corridor/wall": "angle 0.290, size 0.013",
-        "tum_desk/partition": "angle 0.020, size 0.143",
-        "tum_desk/floor": "angle 0.020, size 0.029",
+        "sun3d_corridor/floor": "angle 0.110, size 0.012",
+        "sun3d_corridor/wall": "angle 0.294, size 0.012",
+    },
+    "test_planar_distortion_as_measured": {
+        "sun3d_corridor/floor": "angle 0.110 against 0.02 + spread 0.072",
+        "sun3d_corridor/wall": "angle 0.294 against 0.02 + spread 0.164",
     },
     "test_off_depth_jumps": {
         "nyu_basement/wardrobe": "0.7 % bridging, 6.4 % on nothing",
@@ -131,6 +137,19 @@ def test_planar_distortion(case: str, results: dict[str, Figures]) -> None:
     assert fig.projected, fig.error
     assert fig.plane_triangles > 100
     assert fig.angle <= MAX_ANGLE
+    assert fig.size <= MAX_SIZE
+
+
+@pytest.mark.parametrize("case", cases("test_planar_distortion_as_measured", planar_only=True))
+def test_planar_distortion_as_measured(case: str, results: dict[str, Figures]) -> None:
+    """The planar line the measure can verify: the angle figure within 0.02 of what it
+    reads between two fits of the region's own raw points (its spread), the size
+    within 0.02."""
+    fig = results[case]
+    assert fig.projected, fig.error
+    assert fig.plane_triangles > 100
+    assert 0.0 <= fig.spread < 0.5
+    assert fig.angle <= MAX_ANGLE + fig.spread, fig.spread
     assert fig.size <= MAX_SIZE
 
 

@@ -7,11 +7,19 @@ import numpy as np
 import pytest
 
 from adaproj_edge.arrays import FloatArray
+from adaproj_edge.errors import SurfaceError
 from adaproj_edge.geometry.analytic import Corner, get_surface, ray_cast
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.depth.lattice import lattice_uv
 from adaproj_edge.geometry.depth.sensor import SensorModel
-from adaproj_edge.geometry.planes import curvature_ratio, find_planes, snap_planes
+from adaproj_edge.geometry.planes import (
+    PLANES_KEY,
+    curvature_ratio,
+    find_planes,
+    on_planes,
+    plane_equations,
+    snap_planes,
+)
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 
@@ -55,6 +63,20 @@ def test_a_wall_corner_becomes_its_two_walls(corner: str | Corner, seed: int) ->
     # every node stays on its own projector ray
     uv = P.project(got)
     assert np.allclose(uv[ok], lattice_uv(P, snapped.shape)[ok], atol=1e-3)
+    # the meta lists the two planes (for the warp), and the snapped walls lie on them
+    eq = plane_equations(snapped.meta)
+    assert np.allclose(eq, [[*p.normal, p.offset] for p in planes])
+    on = on_planes(got[4:-4, 4:-4].reshape(-1, 3), eq)
+    assert on.any(axis=1).mean() > 0.9
+
+
+@pytest.mark.parametrize(
+    "bad", ["walls", [[0.0, 0.0, 1.0]], [[0.0, 0.0, 2.0, 1.0]], [[0, 0, 1, None]]]
+)
+def test_a_surface_whose_meta_lists_malformed_planes_is_refused(bad: object) -> None:
+    with pytest.raises(SurfaceError, match=PLANES_KEY):
+        plane_equations({PLANES_KEY: bad})
+    assert plane_equations({}).shape == (0, 4)
 
 
 @pytest.mark.parametrize(
