@@ -27,6 +27,7 @@ from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.rectangle import NEAR, Rect, boundary_loops, inscribed_rectangle
 from adaproj_edge.geometry.triangles import carry_through_triangles
 from adaproj_edge.warp.mesh import MeshGeometry
+from adaproj_edge.warp.solve import PLANE_SHAPE
 from adaproj_edge.warp.upright import upright
 
 DEFAULT_UP = (0.0, -1.0, 0.0)  # "up" in frame P when the projector is held level
@@ -70,8 +71,10 @@ def upright_angle(
     gravity's ``up`` (frame P): gravity on a wall, toward the device on a floor (among
     the triangles ``among`` (T,) only, when given). For each triangle that votes, down
     projected on its plane is carried into content space by the triangle's affine map;
-    the mean direction (weighted by surface area times how far down lies in the plane)
-    defines the rotation. Returns 0 when down has no direction on the surface.
+    the mean direction (weighted by surface area times how far down lies in the plane,
+    times ``1 + PLANE_SHAPE`` on a snapped plane's triangles, as in the solve: the
+    warp holds those undistorted and bends the rest) defines the rotation. Returns 0
+    when down has no direction on the surface.
     """
     rule = upright(mesh, np.asarray(up, dtype=np.float64), among)
     down = -rule.up
@@ -88,6 +91,13 @@ def upright_angle(
     if not np.any(good):
         return 0.0
     w = np.divide(weight, norm, out=np.zeros_like(norm), where=good)  # per unit direction
+    # a snapped plane's triangles are held undistorted (their E_a weighs 1 + PLANE_SHAPE):
+    # their down is the one a viewer sees; the rest takes the bending the plane refuses,
+    # and its votes turn with it, so the held triangles vote at their weight in the solve
+    # where down lies in their plane (not a floor's under the wall rule: there gravity
+    # has no direction, and a held floor would outvote the wall)
+    held = mesh.planar & (weight > HELD_ALONG * area)
+    w = w * (1.0 + PLANE_SHAPE * held)
     mean = np.array([dx @ w, dy @ w])
     if np.linalg.norm(mean) < 1e-12 * max(float(np.sum(area)), 1e-300):
         return 0.0
@@ -138,6 +148,7 @@ def _down_on_surface(
     return a, b, area, area * strength, ok
 
 
+HELD_ALONG = math.sin(math.radians(45.0))  # down this much in a held plane: it votes held
 MIN_UNDER = 8  # triangles under the content that decide its up (fewer: the whole mesh's)
 SAME_ANGLE = math.radians(1.0)  # a rotation this close to the first is kept (no second search)
 
