@@ -63,13 +63,24 @@ def test_developable_surfaces_stay_exact_with_a_salient_subject(name: str, mask:
     assert d.angle_mean <= EXACT and d.size_std <= EXACT, (d.angle_mean, d.size_std)
 
 
+# the line for a developable surface on the displayed map: a wavy wall whose
+# waves are two grid cells long is exact too once its columns are split finely enough
+# (adaproj_edge/warp/adaptive.py: 5.2e-4 in angle when a column was split 8 times at
+# most, 1.5e-4 at 12)
+EXACT_DISPLAY = 5e-4
+
+
 @pytest.mark.parametrize("mask", [None, "one-left", "half"])
 @pytest.mark.parametrize("name", ["waves"])
 def test_waves_two_grid_cells_long_are_followed(name: str, mask: str | None) -> None:
     assert get_surface(name).developable
     for mode in ("conformal", "content") if mask is None else ("content",):
         d = distortion(name, mode, mask)
-        assert d.angle_mean <= 0.005 and d.size_std <= 0.005, (mode, d.angle_mean, d.size_std)
+        assert d.angle_mean <= EXACT_DISPLAY and d.size_std <= EXACT_DISPLAY, (
+            mode,
+            d.angle_mean,
+            d.size_std,
+        )
 
 
 @pytest.mark.parametrize("name", [n for n in DEVELOPABLE if n != "plane"])
