@@ -222,6 +222,21 @@ def visible_fraction(map_xy: NDArray[np.float32], content_size: tuple[int, int])
     return float(canvas.mean())
 
 
+def lit_coverage(
+    map_xy: NDArray[np.float32], points: NDArray[np.floating], content_size: tuple[int, int]
+) -> float:
+    """Fraction of the lit projector pixels (those whose ray meets the surface: finite
+    ``points`` (H, W, 3)) that show the content: the displayed map ``map_xy`` (H, W, 2)
+    lands inside the content's pixels (edges included). As the projector sees it,
+    which is about as a viewer beside it does."""
+    w, h = content_size
+    lit = np.isfinite(points).all(axis=-1)
+    x, y = map_xy[..., 0], map_xy[..., 1]
+    with np.errstate(invalid="ignore"):
+        shown = (x >= -0.5) & (x <= w - 0.5) & (y >= -0.5) & (y <= h - 0.5)
+    return float(np.mean(shown[lit]))
+
+
 # Lines the distortion of a warp made from measured depth is held to, beside that of the
 # warp made from the true surface ("within twice the truth, plus what the depth costs").
 NONE = 0.003

@@ -63,6 +63,9 @@ BEND = 0.15  # kappa h a cell may have before it is split
 BEND_ONE_WAY = 0.08
 ONE_WAY = 0.2
 MAX_FACTOR = 8  # at most this many columns (rows) out of one
+# ... where every cell bends one way only (the display is to be exact): a wavy wall
+# whose waves are two cells long needs ~10 (8: mean angle 5.2e-4, 12: 1.5e-4)
+MAX_FACTOR_ONE_WAY = 12
 CREASE_FACTOR = 4  # cells a curved crease crosses are split this many times both ways
 BUDGET = 7000  # vertices at most
 MIN_SPACING = 4  # pixels between two lines at least
@@ -378,16 +381,19 @@ def refine_grid(
         # smooth at the grid's scale needs no closer one
         if np.all(_excess(bends(surface, base, 2 * SAMPLE, kinks=True)) < QUICK):
             return none
-    need_x, need_y = _needs(bends(surface, base))
+    b = bends(surface, base)
+    need_x, need_y = _needs(b)
     flat = np.zeros(grid.rows * grid.cols)
     if curved is not None and curved.size:
         flat[curved] = 1.0
     creased = flat.reshape(grid.rows, grid.cols)
     need_x = np.maximum(need_x, CREASE_FACTOR * creased)
     need_y = np.maximum(need_y, CREASE_FACTOR * creased)
-    # at most MAX_FACTOR, and no line closer than MIN_SPACING pixels to the next
-    most_x = np.minimum(MAX_FACTOR, np.diff(base[0, :, 0]) // MIN_SPACING)
-    most_y = np.minimum(MAX_FACTOR, np.diff(base[:, 0, 1]) // MIN_SPACING)
+    # at most MAX_FACTOR (MAX_FACTOR_ONE_WAY where the display is to be exact), and no
+    # line closer than MIN_SPACING pixels to the next
+    most = MAX_FACTOR_ONE_WAY if _exact(b) else MAX_FACTOR
+    most_x = np.minimum(most, np.diff(base[0, :, 0]) // MIN_SPACING)
+    most_y = np.minimum(most, np.diff(base[:, 0, 1]) // MIN_SPACING)
     fx = np.clip(need_x.max(axis=0), 1, np.maximum(most_x, 1)).astype(np.intp)
     fy = np.clip(need_y.max(axis=1), 1, np.maximum(most_y, 1)).astype(np.intp)
     # within the budget: scale the extra lines down evenly

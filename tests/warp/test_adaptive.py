@@ -10,7 +10,7 @@ from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.warp.adaptive import (
     BEND,
     BEND_ONE_WAY,
-    MAX_FACTOR,
+    MAX_FACTOR_ONE_WAY,
     MIN_SPACING,
     bends,
     refine_grid,
@@ -58,7 +58,7 @@ def test_corrugations_split_the_columns_only() -> None:
     assert np.all(np.isin(base, r.xs))  # the base grid's lines stay
     assert np.all(r.xs[r.base_cols] == base)
     assert np.all(np.diff(r.xs) >= MIN_SPACING)
-    assert r.factor_x.max() <= MAX_FACTOR
+    assert r.factor_x.max() <= MAX_FACTOR_ONE_WAY
 
 
 def test_relief_splits_only_the_columns_and_rows_it_crosses() -> None:
@@ -124,8 +124,8 @@ def test_oblique_rulings_are_split_until_every_triangle_turns_within_the_limit()
         ok &= cone.patch(np.nan_to_num(at(d))) == 1
     ok &= np.abs(np.sum(n * p, axis=-1)) >= 0.5 * np.linalg.norm(p, axis=-1)
     # cells whose column and row were split fewer times than they may be
-    free = (np.repeat(r.factor_y, r.factor_y)[:, None] < MAX_FACTOR) & (
-        np.repeat(r.factor_x, r.factor_x)[None, :] < MAX_FACTOR
+    free = (np.repeat(r.factor_y, r.factor_y)[:, None] < MAX_FACTOR_ONE_WAY) & (
+        np.repeat(r.factor_x, r.factor_x)[None, :] < MAX_FACTOR_ONE_WAY
     )
     # each edge's ends, and the cells (of the edges' own, or the last row / column's)
     # it must be free in

@@ -11,7 +11,11 @@ import numpy as np
 import pytest
 
 from adaproj_edge.geometry.analytic import DEVELOPABLE, NON_DEVELOPABLE, SURFACES, get_surface
-from tests.distortion import Distortion, in_mask, visible_fraction
+from adaproj_edge.render.maps import map_from_warp
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.planner import compute_warp
+from adaproj_edge.warp.reference import REFERENCE
+from tests.distortion import Distortion, in_mask, lit_coverage, visible_fraction
 from tests.warp.bound import harmonic_residual
 from tests.warp.conftest import (
     CONTENT,
@@ -19,6 +23,7 @@ from tests.warp.conftest import (
     SMALL_SUBJECTS,
     distortion,
     subject_masks,
+    surface,
     warped,
 )
 
@@ -63,13 +68,24 @@ def test_developable_surfaces_stay_exact_with_a_salient_subject(name: str, mask:
     assert d.angle_mean <= EXACT and d.size_std <= EXACT, (d.angle_mean, d.size_std)
 
 
+# the issue's line for a developable surface on the displayed map: a wavy wall whose
+# waves are two grid cells long is exact too once its columns are split finely enough
+# (adaproj_edge/warp/adaptive.py: 5.2e-4 in angle when a column was split 8 times at
+# most, 1.5e-4 at 12)
+EXACT_DISPLAY = 5e-4
+
+
 @pytest.mark.parametrize("mask", [None, "one-left", "half"])
 @pytest.mark.parametrize("name", ["waves"])
 def test_waves_two_grid_cells_long_are_followed(name: str, mask: str | None) -> None:
     assert get_surface(name).developable
     for mode in ("conformal", "content") if mask is None else ("content",):
         d = distortion(name, mode, mask)
-        assert d.angle_mean <= 0.005 and d.size_std <= 0.005, (mode, d.angle_mean, d.size_std)
+        assert d.angle_mean <= EXACT_DISPLAY and d.size_std <= EXACT_DISPLAY, (
+            mode,
+            d.angle_mean,
+            d.size_std,
+        )
 
 
 @pytest.mark.parametrize("name", [n for n in DEVELOPABLE if n != "plane"])
@@ -94,6 +110,48 @@ def test_every_mode_shows_all_content_without_folds(name: str, mode: str, mask: 
         assert np.all(np.isfinite(warp.image_xy[np.isfinite(warp.depth)]))
     assert distortion(name, mode, mask).folds == 0
     assert visible_fraction(m, CONTENT) >= 0.9996
+
+
+# the picture no smaller than the paper's: the content shows on at least 0.9x the lit
+# projector pixels the paper-as-written warp's does (adaproj_edge/warp/reference.py:
+# E' and the maximal inscribed rectangle in its domain, then eq. 8-9), with the same
+# subject, computed here. On the half cylinder on a floor the content sits lower (0.78x:
+# 0.475 of the lit pixels against 0.611; on the surface's area 0.97x): the rectangle is
+# centred on the region's area centroid while that costs at most 10 % of its width
+# (adaproj_edge.geometry.rectangle.NEAR), and the floor seen obliquely pulls the centroid
+# down; without that rule it covers 0.74, the guard then keeping the content-aware warp.
+# On the fine corrugations the adaptive grid (100x60) leaves 0.625 of the lit pixels
+# against the paper's 0.985 (0.987 with the adaptive grid off): the content is shown at
+# 0.8x the scale (0.62 content pixels per projector pixel at the centre against 0.50),
+# turned 0.6 deg. The refined mesh's developed outline is skewed (its corners at content
+# (-101, -78), (761, 16), (-12, 498), (746, 430)) and 26 of its triangles are unfolded as
+# creases on the smooth waves: the likely cause, not yet confirmed
+COVERAGE = 0.9
+SMALLER = {"cylinder-floor": "centred lower", "waves-fine": "the refined mesh's outline"}
+
+
+@pytest.mark.parametrize("mask", ["one-left", "half"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(
+            n, marks=pytest.mark.xfail(n in SMALLER, reason=SMALLER.get(n, ""), strict=True)
+        )
+        for n in SURFACES
+    ],
+)
+def test_the_picture_covers_as_much_of_the_lit_surface_as_the_papers(name: str, mask: str) -> None:
+    s = surface(name)
+    paper = compute_warp(
+        s,
+        CONTENT,
+        subject_masks()[mask],
+        WarpSettings(mode="content", alternation="paper"),
+        REFERENCE,
+    )
+    theirs = lit_coverage(map_from_warp(paper, s), s.points, CONTENT)
+    ours = lit_coverage(warped(name, "content", mask)[1], s.points, CONTENT)
+    assert ours >= COVERAGE * theirs, (ours, theirs)
 
 
 CHOICES = ("content-aware", "flattened", "blend", "conformal flattened", "conformal")

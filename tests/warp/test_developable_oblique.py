@@ -1,0 +1,73 @@
+"""Developable surfaces the built-in set lacks are exact on the displayed map too: cones
+on their own (not meeting a wall) and cylinders whose axis is neither vertical nor
+horizontal in the frame.
+
+Issue 30's line for every developable surface: mean angle error and size inconsistency
+<= 5e-4 on the displayed map, measured every 4 px. Ground truth: the independent scorer
+(``tests/distortion.py``: the rendered per-pixel map against rays cast at the analytic
+surface); the surfaces are the analytic classes of
+:mod:`adaproj_edge.geometry.analytic`, turned about the projector by
+:class:`tests.warp.random_surfaces.Turned`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from adaproj_edge.geometry.analytic import ConeWall, Cylinder, simulate_surface
+from adaproj_edge.render.maps import map_from_warp
+from adaproj_edge.warp.engine import WarpSettings
+from adaproj_edge.warp.planner import compute_warp
+from tests.distortion import measure
+from tests.warp.conftest import CONTENT, subject_masks
+from tests.warp.random_surfaces import Turned, axis_angle
+
+EXACT = 5e-4  # the issue's line (exact surfaces score ~5e-5 here)
+
+
+def turned(surface: Any, pitch: float, yaw: float, roll: float) -> Turned:
+    """``surface`` turned by ``pitch``, ``yaw`` and ``roll`` degrees about the
+    projector's x, y and z axes (in that order of application: roll first)."""
+    rot = (
+        axis_angle(np.deg2rad([pitch, 0.0, 0.0]))
+        @ axis_angle(np.deg2rad([0.0, yaw, 0.0]))
+        @ axis_angle(np.deg2rad([0.0, 0.0, roll]))
+    )
+    return Turned(surface, tuple(tuple(float(v) for v in row) for row in rot))
+
+
+# a cone whose ruling meeting the wall is out of the frame: only the cone is seen
+CONE = ConeWall("cone", x0=-0.7, z0=1.6, apex_y=-1.4, alpha=0.3, turn=0.3)
+WIDE_CONE = ConeWall("wide-cone", x0=-0.7, z0=1.8, apex_y=-0.9, alpha=0.5, turn=0.2)
+CASES = [
+    pytest.param(CONE, id="cone"),
+    pytest.param(WIDE_CONE, id="wide-cone"),
+    # the wide cone rolled 70 deg, its rulings nearly along the rows: short of the line
+    # near where the cone turns away from the projector (mean angle 1.05e-3, size
+    # 1.1e-3, worst 4-px triangle 0.039)
+    pytest.param(
+        turned(WIDE_CONE, 0.0, 0.0, 70.0),
+        id="wide-cone-rolled",
+        marks=pytest.mark.xfail(reason="short near the cone's turn-away", strict=True),
+    ),
+    pytest.param(
+        turned(Cylinder("column", cx=0.0, cz=2.3, r=0.75, concave=False), 25.0, 20.0, 0.0),
+        id="column-oblique",
+    ),
+    pytest.param(
+        turned(Cylinder("vault", cx=0.0, cz=0.45, r=1.25, concave=True), -20.0, 30.0, 15.0),
+        id="vault-oblique",
+    ),
+]
+
+
+@pytest.mark.parametrize("analytic", CASES)
+def test_cones_and_oblique_cylinders_are_exact_on_the_display(analytic: Any) -> None:
+    surface = simulate_surface(analytic)
+    warp = compute_warp(surface, CONTENT, subject_masks()["half"], WarpSettings(mode="content"))
+    d = measure(map_from_warp(warp, surface), analytic, surface.projector.K)
+    assert d.folds == 0
+    assert d.angle_mean <= EXACT and d.size_std <= EXACT, (d.angle_mean, d.size_std)
