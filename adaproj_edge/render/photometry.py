@@ -307,19 +307,28 @@ def crease_gain(
     # across it, not at the corner: each bend reaches one pixel along the crease
     across_x = np.asarray(cv2.dilate(along_x, np.ones((3, 1), np.uint8)), bool)
     across_y = np.asarray(cv2.dilate(along_y, np.ones((1, 3), np.uint8)), bool)
-    iy, ix = np.nonzero(across_x | across_y)
-    m = 2  # the normals' stencil reaches two pixels: each block carries that margin
+    # runs of reduced pixels down each column, each made as one strip of frame pixels
+    # with a margin of two (the normals' stencil); the strips stacked along the rows,
+    # so a node's stencil stays within its own strip
+    ix, iy = np.nonzero((across_x | across_y).T)  # column by column, rows in order
+    start = np.ones(ix.size, bool)
+    start[1:] = (ix[1:] != ix[:-1]) | (iy[1:] != iy[:-1] + 1)
+    end = np.roll(start, -1)
+    end[-1] = True
+    m = 2
     bw, bh = math.ceil(sx), math.ceil(sy)
-    ku = np.arange(-m, bw + m)
-    kv = np.arange(-m, bh + m)
-    u = np.floor(ix * sx).astype(np.intp)[:, None, None] + ku[None, None, :]
-    v = np.floor(iy * sy).astype(np.intp)[:, None, None] + kv[None, :, None]
-    u, v = np.broadcast_arrays(u, v)
-    n, bb, ww = u.shape
-    # blocks stacked along the rows: a node's stencil stays within its own block
-    uv = np.stack([u, v], axis=-1).reshape(n * bb, ww, 2).astype(np.float64)
-    e = relative_irradiance(surface.points_at(uv), p, uv, vignetting).reshape(n, bb, ww)
-    e, u, v = e[:, m:-m, m:-m], u[:, m:-m, m:-m], v[:, m:-m, m:-m]
+    top = np.floor(iy[start] * sy).astype(np.intp) - m
+    rows = np.floor(iy[end] * sy).astype(np.intp) + bh + m - top
+    left = np.floor(ix[start] * sx).astype(np.intp) - m
+    first = np.cumsum(rows) - rows
+    k = np.arange(int(rows.sum())) - np.repeat(first, rows)  # the row within its strip
+    v = np.repeat(top, rows) + k
+    u = np.repeat(left, rows)[:, None] + np.arange(bw + 2 * m)[None, :]
+    v = np.broadcast_to(v[:, None], u.shape)
+    uv = np.stack([u, v], axis=-1).astype(np.float64)
+    e = relative_irradiance(surface.points_at(uv), p, uv, vignetting)
+    inner = (k >= m) & (k < np.repeat(rows, rows) - m)
+    e, u, v = e[inner, m:-m], u[inner, m:-m], v[inner, m:-m]
     t = _bilinear(target, (u + 0.5) / sx - 0.5, (v + 0.5) / sy - 0.5)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         g = np.minimum(np.exp(t) / e, 1.0)
