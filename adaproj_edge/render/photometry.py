@@ -289,13 +289,16 @@ def crease_gain(
     every frame pixel they cover: the irradiance there from the surface (normals from
     the full-frame lattice, each wall's own) and the smooth target ``target`` (log,
     continuous across the crease) interpolated, so the gain jumps where the surface
-    bends, not over a reduced pixel.
+    bends, not over a reduced pixel. Only on a surface sampled at least as finely as
+    the reduced frame: between the nodes of a coarser lattice the surface is bilinear,
+    and its normals there would print the lattice's lines on the gain.
     """
     p = surface.projector
     h, w = light.shape
     sx, sy = p.width / w, p.height / h
-    if sx <= 1.0 and sy <= 1.0:
-        return None
+    lx, ly = surface.lattice_scale()
+    if (sx <= 1.0 and sy <= 1.0) or lx > 1.05 * sx or ly > 1.05 * sy:
+        return None  # the frame's pixels know no more of the surface than the reduced ones
     lg = np.log(light.astype(np.float64))
     along_x = np.zeros((h, w), np.uint8)
     along_y = np.zeros((h, w), np.uint8)
