@@ -34,7 +34,7 @@ the cost of measuring (once per calibration) and the frames the captures take.
 
     .venv/bin/python tools/bench_photometric.py [--surfaces corner,sphere-concave,bowl]
         [--scale 2] [--frames 300] [--colour 24 --seed 0 --size 640x400]
-        [--albedo a.png,b.png]
+        [--albedo a.png,b.png] [--lift 0.8]
 """
 
 from __future__ import annotations
@@ -72,6 +72,13 @@ def main() -> None:
     p.add_argument("--size", default="640x400", help="the frame for the colour figures")
     p.add_argument("--albedo", default="", help="albedo pictures to score, comma-separated")
     p.add_argument("--no-geometric", action="store_true", help="only the colour figures")
+    p.add_argument(
+        "--lift",
+        type=float,
+        default=None,
+        help="also score an 8-bit lift map added after the colour gain, made exact for "
+        "content of this value (0-1; the room's light evened out to a uniform black)",
+    )
     args = p.parse_args()
 
     from adaproj_edge.threads import apply_thread_policy
@@ -248,6 +255,7 @@ def colour_figures(args: argparse.Namespace) -> None:
         f"{'kept':>5}"
     )
     got: list[tuple[float, float, float, float]] = []
+    lifted_scores: list[tuple[float, float]] = []
     measure_s = []
     for surface_name, kind, picture in cases:
         surface = simulate_surface(surface_name, projector)
@@ -273,6 +281,13 @@ def colour_figures(args: argparse.Namespace) -> None:
             comp = plan(response, lift=False)
             gain = colour_gain(response, comp, (w, h))
             kept = f"{comp.kept:5.2f}"
+            if args.lift is not None:
+                up = plan(response, lift=True)
+                lifted = apply_gain(content, colour_gain(response, up, (w, h)))
+                lifted = cv2.add(lifted, lift_map(response, up, (w, h), args.lift))
+                seen = albedo * (lin[lifted] * e[..., None] + ambient)
+                lifted_scores.append(scores(seen, content, e > 0))
+                kept += " lifted {:.1f} dB {:.3f}".format(*lifted_scores[-1])
         except CalibrationError as err:  # as on the device: the geometric gain alone
             gain, kept = gain_map(surface), f"refused: {err}"
         measure_s.append(time.process_time() - t1)
@@ -296,6 +311,14 @@ def colour_figures(args: argparse.Namespace) -> None:
         f"{a[:, 2].min():.3f} compensated {a[:, 3].min():.3f} (median "
         f"{np.median(a[:, 2]):.3f} -> {np.median(a[:, 3]):.3f})"
     )
+    if lifted_scores:
+        lf = np.array(lifted_scores)
+        print(
+            f"{'lifted':17} (an 8-bit lift map exact at content value {args.lift}): min PSNR "
+            f"{lf[:, 0].min():.1f} dB, min SSIM {lf[:, 1].min():.3f} (median "
+            f"{np.median(lf[:, 1]):.3f}), {int(np.sum(lf[:, 1] < 0.85))} under 0.85 (without "
+            f"the lift: {int(np.sum(a[:, 3] < 0.85))})"
+        )
     big = Projector.default()
     e = scaled_irradiance(simulate_surface("corner", big))
     albedo = (0.5 + 0.5 * texture("bricks", e.shape, rng)[..., None] * np.ones(3)).astype(
@@ -325,6 +348,27 @@ def colour_figures(args: argparse.Namespace) -> None:
 
 
 PRIMARIES = ("blue", "green", "red")
+
+
+def lift_map(response: Any, comp: Any, size: tuple[int, int], value: float) -> Any:
+    """An 8-bit lift (H, W, 3) to add to a frame after the colour gain of ``comp`` (a
+    plan with its lift): the pixel values that raise each pixel's light by
+    ``M^-1 (lift - ambient)`` where the content's value is ``value`` (0-1): the room's
+    light evened out to the uniform black exactly for content of that value (darker
+    content is lifted too little, brighter too much: the frame is in 8 bits, not in
+    light). ``size`` (width, height) is the frame's."""
+    import cv2
+    import numpy as np
+
+    from adaproj_edge.render.reflectance import colour_gain
+
+    inv = np.linalg.pinv(response.mix.astype(np.float64))
+    room = np.einsum("...ij,...j->...i", inv, comp.lift - response.ambient.astype(np.float64))
+    gain = colour_gain(response, comp, size).light.astype(np.float64)
+    base = gain * float(np.clip(value, 0.0, 1.0)) ** 2.2
+    up = np.clip(base + np.clip(room, 0.0, 1.0), 0.0, 1.0) ** (1 / 2.2) - base ** (1 / 2.2)
+    small = np.clip(np.rint(255.0 * up), 0, 255).astype(np.uint8)
+    return cv2.resize(small, size, interpolation=cv2.INTER_LINEAR)
 
 
 if __name__ == "__main__":

@@ -425,7 +425,10 @@ class Runtime:
             self.upright = Upright(UprightSettings(gravity=s.gravity))
             self.screen.recalibrate(calibration.projector, calibration.R_P_I)
             self.surfaces = SurfaceSource(calibration, s, t.times)
+            # the surface's colour measured before stays (its holds_on judges each surface)
+            measured = self.warps.measured
             self.warps = WarpSource(calibration.projector, s, t, calibration.vignetting)
+            self.warps.measured = measured
             self.surface = None
         self._event("calibrated", changed=calibration is not None, reason=reason)
         self._set_state(State.IDLE)

@@ -28,6 +28,8 @@ from adaproj_edge.hal.display import MemoryDisplay
 from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.link.server import Server
 from adaproj_edge.link.store import ContentStore
+from adaproj_edge.procam.photometric import Measured
+from adaproj_edge.render.reflectance import Response
 from adaproj_edge.render.sheet import text_page
 
 CAL = Calibration.default()
@@ -74,8 +76,17 @@ def test_recalibrate_swaps_the_calibration_and_refuses_another_projector() -> No
     rt.tick()
     assert rt.calibration_wanted
     new = replace(CAL, R_P_I=np.eye(3)[[1, 0, 2]] * np.array([1.0, 1.0, -1.0]))
+    # the surface's colour measured at start survives the new warp source
+    w, h = CAL.projector.width // 2, CAL.projector.height // 2
+    response = Response(
+        np.zeros((h, w, 3, 3), np.float32), np.zeros((h, w, 3), np.float32), np.ones((h, w), bool)
+    )
+    measured = Measured(response, np.full((h, w), 1.5), (CAL.projector.width, CAL.projector.height))
+    rt.warps.measured = measured
+    old_warps = rt.warps
     rt.recalibrate(new, "good: 0.3 px RMS")
     assert not rt.calibration_wanted and rt.calibration is new and rt.state == State.IDLE
+    assert rt.warps is not old_warps and rt.warps.measured is measured
     assert np.array_equal(rt.motion.R_P_I, new.R_P_I)
     events = [e for e in rt.telemetry.events if e["event"] == "calibrated"]
     assert events[-1]["changed"] is True and events[-1]["reason"] == "good: 0.3 px RMS"
