@@ -161,7 +161,8 @@ def fill_from_ring(
     a large one along the ray there, and such a hole is often the band beside a
     silhouette. A hole inside the frame is filled whole; one at the frame's border
     only within ``border_fill_nodes`` of its ring (the fit is not trusted far into an
-    unknown void).
+    unknown void), and not at all where the surface beside it curves on to grazing
+    there (a column's limb, where the surface ends: :func:`_turns_grazing`).
     """
     known = np.isfinite(s)
     ring = ndimage.binary_dilation(region, iterations=settings.ring_nodes) & known
@@ -209,10 +210,47 @@ def fill_from_ring(
         if at_border:
             far = ndimage.distance_transform_cdt(~known, metric="chessboard")
             out[far > settings.border_fill_nodes] = np.nan
+            if node_angle is not None and _turns_grazing(
+                s, region, np.isfinite(out), node_angle, settings
+            ):
+                return None
             z_ok = (settings.min_depth_m <= out) & (out <= settings.max_depth_m)
             out[~z_ok] = np.nan
         return out
     return None
+
+
+def _turns_grazing(
+    s: FloatArray,
+    region: BoolArray,
+    fill: BoolArray,
+    node_angle: float,
+    settings: DepthSettings,
+) -> bool:
+    """Whether the surface beside the border hole ``region`` of ``s`` (rows, cols)
+    curves on to grazing incidence (beyond ``fill_max_incidence_deg``) at a node a
+    plane fitted to its ring would fill (``fill``): the limb of a column or a cone,
+    where the surface ends. A plane takes the ring's mean slope and carries the surface
+    on past its silhouette; a quadric fitted to the known nodes a few more nodes deep
+    (``ring_nodes`` + 2: enough to show a turn across a straight limb) shows it."""
+    near = ndimage.binary_dilation(region, iterations=settings.ring_nodes + 2)
+    rr, cc = np.nonzero(near & np.isfinite(s))
+    scale = float(max(s.shape))
+    a = _design(rr / scale, cc / scale, 2)
+    if a.shape[0] < 2 * a.shape[1]:
+        return False
+    got, _, rank, _ = np.linalg.lstsq(a, 1.0 / s[rr, cc], rcond=None)
+    if rank < a.shape[1]:
+        return False
+    coef: FloatArray = np.asarray(got, dtype=np.float64)
+    fr, fc = np.nonzero(fill)
+    r, c = fr / scale, fc / scale
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zq = 1.0 / (_design(r, c, 2) @ coef)
+        gr, gc = _gradient(r, c, 2, coef)
+        tan = np.hypot(gr, gc) / scale * zq / node_angle
+    limit = np.tan(np.radians(settings.fill_max_incidence_deg))
+    return bool(np.any(~np.isfinite(zq) | (zq <= 0) | (tan > limit)))
 
 
 def _gradient(
