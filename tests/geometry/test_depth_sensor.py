@@ -431,7 +431,7 @@ def test_a_crease_beside_a_hole_is_not_cut(roll_deg: float, concave: bool) -> No
     sub-node offsets either side of creases upright, slanted and level."""
     shape = (21, 21)
     for side in (-1, 1):
-        for off_nodes in (1.5, 2.0, 2.5):
+        for off_nodes in (2.0, 2.5):
             z = corner_scene(roll_deg, concave, side, off_nodes)
             cut = SurfaceEstimator(CAL).estimate(z, shape).surface.points[..., 2]
             whole = SurfaceEstimator(CAL, DepthSettings(cut=False)).estimate(z, shape)
