@@ -116,6 +116,7 @@ def fill_holes(
     boxes = ndimage.find_objects(labels)
     pad = settings.ring_nodes + settings.border_fill_nodes + 1
     rows, cols = s.shape
+    pieces, apart = _cut_apart(s, blocked)
     # inside the frame up to a cap; at the border any size (filled only a few nodes deep)
     for label in np.flatnonzero(free & ~small & ((sizes <= cap) | at_border)):
         box = boxes[label - 1]
@@ -125,6 +126,11 @@ def fill_holes(
             slice(max(box[1].start - pad, 0), min(box[1].stop + pad, cols)),
         )
         region = labels[win] == label
+        if apart is not None:
+            ring = ndimage.binary_dilation(region, iterations=settings.ring_nodes)
+            near = np.unique(pieces[win][ring])
+            if apart[np.ix_(near, near)].any():
+                continue  # the ring spans a cut: a fill would join what it separated
         got = fill_from_ring(s[win], region, sensor, settings, bool(at_border[label]), node_angle)
         if got is not None:
             if out is s:
@@ -134,6 +140,33 @@ def fill_holes(
             out[done] = got[np.isfinite(got)]
             fill |= done
     return out, fill
+
+
+def _cut_apart(
+    s: FloatArray, blocked: BoolArray | None
+) -> tuple[NDArray[np.int32], BoolArray | None]:
+    """The pieces of ``s`` (rows, cols) (4-connected known nodes, labelled from 1; 0
+    where unknown) and which of them a cut separates, (n + 1, n + 1): pieces beside
+    one run of ``blocked`` nodes (4-connected: the nodes a cut dropped, a cut gap),
+    which is not one piece; None without a blocked node. A hole whose ring reaches two
+    such pieces lies at the cut (where it meets a void, say): a surface fitted to that
+    ring would join across it what the cut separated."""
+    pieces, n = ndimage.label(np.isfinite(s))
+    if blocked is None or not blocked.any() or n < 2:
+        return pieces, None
+    runs, m = ndimage.label(blocked)
+    touch = np.zeros((m + 1, n + 1), bool)
+    for a, b in (
+        ((slice(1, None), slice(None)), (slice(None, -1), slice(None))),
+        ((slice(None), slice(1, None)), (slice(None), slice(None, -1))),
+    ):
+        touch[runs[a], pieces[b]] = True
+        touch[runs[b], pieces[a]] = True
+    touch[0, :] = False
+    touch[:, 0] = False
+    apart = (touch.T.astype(np.int32) @ touch.astype(np.int32)) > 0
+    np.fill_diagonal(apart, False)
+    return pieces, apart
 
 
 def fill_from_ring(
