@@ -55,17 +55,9 @@ def _centres(path: Path, hand: HandMotion) -> np.ndarray:
     return np.array(out)
 
 
-OAK_D_SLIT = pytest.mark.xfail(
-    strict=True,
-    reason="on OAK-D-like depth the lattice cut leaves a slit of blocked nodes down the "
-    "corner's crease beside a hole (the cut's slope test reads an unknown neighbour pair "
-    "as flat), and the content jumps 43 px along the ridge when it opens or closes",
-)
-
-
 @pytest.mark.parametrize(
     ("seed", "roll", "sensor"),
-    [(0, 12.0, "smooth"), (1, 0.0, "smooth"), pytest.param(1, 0.0, "oak-d", marks=OAK_D_SLIT)],
+    [(0, 12.0, "smooth"), (1, 0.0, "smooth"), (1, 0.0, "oak-d")],
 )
 def test_the_corners_content_does_not_jump_between_estimates(
     tmp_path: Path, seed: int, roll: float, sensor: str

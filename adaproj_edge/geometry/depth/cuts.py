@@ -8,12 +8,16 @@ neighbours (``gap`` unknown nodes between them, 0 to :data:`MAX_GAP`) is cut whe
 
     |s_b - s_a| > slope (gap + 1) max(|d_before|, |d_after|) + k sigma(max(s_a, s_b))
 
-where ``d_before``, ``d_after`` are the depth differences of the neighbouring pairs
-just before and after along the same line that go the same way (a tilted wall or a
-floor seen grazing explains large differences; an object's edge, where the
-difference turns around, does not), and ``sigma`` the sensor's depth error there
-(:class:`~adaproj_edge.geometry.depth.sensor.SensorModel`): judged per pair from its
-depth and the baseline, not a fixed threshold.
+where ``d_before``, ``d_after`` are the depth changes per node just before and after
+the pair along the same line, when they go the same way (a tilted wall or a floor
+seen grazing explains large differences; an object's edge, where the difference
+turns around, does not). Beside a hole they are measured across it, to the nearest
+known node (up to :data:`MAX_GAP` unknown nodes away): at a crease with an untextured
+patch beside it the pair on the hole's side is unknown and the pair on the other
+side turns around with the crease, and reading the unknown pair as flat cut the
+crease's own nodes (a slit down a wall corner). ``sigma`` is the sensor's depth error
+there (:class:`~adaproj_edge.geometry.depth.sensor.SensorModel`): judged per pair from
+its depth and the baseline, not a fixed threshold.
 
 The lattice is coarse next to the depth image, and on a surface seen obliquely (a
 corridor's wall, its depth growing fast from node to node) the slope explains a
@@ -140,6 +144,24 @@ def cut_at_jumps(
     return np.where(drop, np.nan, s), drop
 
 
+def _slopes_along_rows(s: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Per node of ``s`` (rows, cols), the depth change per node to the nearest known
+    node before it and after it along its row, across at most :data:`MAX_GAP` unknown
+    nodes (NaN where there is none): ``(s[c] - s[c - k]) / k`` and ``(s[c + k] - s[c])
+    / k``. Beside a hole the neighbouring pair is unknown, but the surface's slope
+    there is not: it is measured across the hole."""
+    cols = s.shape[1]
+    before = np.full(s.shape, np.nan)
+    after = np.full(s.shape, np.nan)
+    with np.errstate(invalid="ignore"):
+        for k in range(1, min(MAX_GAP + 1, cols - 1) + 1):
+            d = (s[:, k:] - s[:, :-k]) / k  # d[:, c] = (s[c + k] - s[c]) / k
+            b, a = before[:, k:], after[:, :-k]
+            np.copyto(b, d, where=np.isnan(b))
+            np.copyto(a, d, where=np.isnan(a))
+    return before, after
+
+
 def _cuts_along_rows(
     s: FloatArray, sensor: SensorModel, sigmas: float, slope: float
 ) -> tuple[BoolArray, BoolArray]:
@@ -149,11 +171,7 @@ def _cuts_along_rows(
     drop = np.zeros(s.shape, bool)
     gap_nodes = np.zeros(s.shape, bool)
     known = np.isfinite(s)
-    pad = np.full((rows, cols + 2 * (MAX_GAP + 2)), np.nan)
-    o = MAX_GAP + 2  # column of s[:, 0] in pad
-    pad[:, o : o + cols] = s
-    with np.errstate(invalid="ignore"):
-        d1 = pad[:, 1:] - pad[:, :-1]  # d1[:, c] = pad[:, c + 1] - pad[:, c]
+    slope_before, slope_after = _slopes_along_rows(s)
     empty = np.ones((rows, cols), bool)  # the nodes between a and b are all unknown
     for g in range(min(MAX_GAP, cols - 2) + 1):
         if g > 0:
@@ -166,9 +184,8 @@ def _cuts_along_rows(
         if not ok.any():
             continue
         d = b - a
-        j = np.arange(n)
-        before = d1[:, o + j - 1]  # a - its left neighbour
-        after = d1[:, o + j + g + 1]  # b's right neighbour - b
+        before = slope_before[:, :n]  # per node, from a back to its known neighbour
+        after = slope_after[:, g + 1 : g + 1 + n]  # from b on to its known neighbour
         with np.errstate(invalid="ignore"):
             same_b = np.where(np.sign(before) == np.sign(d), np.abs(before), 0.0)
             same_a = np.where(np.sign(after) == np.sign(d), np.abs(after), 0.0)

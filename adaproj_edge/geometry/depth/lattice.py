@@ -116,6 +116,7 @@ def fill_holes(
     boxes = ndimage.find_objects(labels)
     pad = settings.ring_nodes + settings.border_fill_nodes + 1
     rows, cols = s.shape
+    pieces, apart = _cut_apart(s, blocked)
     # inside the frame up to a cap; at the border any size (filled only a few nodes deep)
     for label in np.flatnonzero(free & ~small & ((sizes <= cap) | at_border)):
         box = boxes[label - 1]
@@ -125,6 +126,11 @@ def fill_holes(
             slice(max(box[1].start - pad, 0), min(box[1].stop + pad, cols)),
         )
         region = labels[win] == label
+        if apart is not None:
+            ring = ndimage.binary_dilation(region, iterations=settings.ring_nodes)
+            near = np.unique(pieces[win][ring])
+            if apart[np.ix_(near, near)].any():
+                continue  # the ring spans a cut: a fill would join what it separated
         got = fill_from_ring(s[win], region, sensor, settings, bool(at_border[label]), node_angle)
         if got is not None:
             if out is s:
@@ -134,6 +140,33 @@ def fill_holes(
             out[done] = got[np.isfinite(got)]
             fill |= done
     return out, fill
+
+
+def _cut_apart(
+    s: FloatArray, blocked: BoolArray | None
+) -> tuple[NDArray[np.int32], BoolArray | None]:
+    """The pieces of ``s`` (rows, cols) (4-connected known nodes, labelled from 1; 0
+    where unknown) and which of them a cut separates, (n + 1, n + 1): pieces beside
+    one run of ``blocked`` nodes (4-connected: the nodes a cut dropped, a cut gap),
+    which is not one piece; None without a blocked node. A hole whose ring reaches two
+    such pieces lies at the cut (where it meets a void, say): a surface fitted to that
+    ring would join across it what the cut separated."""
+    pieces, n = ndimage.label(np.isfinite(s))
+    if blocked is None or not blocked.any() or n < 2:
+        return pieces, None
+    runs, m = ndimage.label(blocked)
+    touch = np.zeros((m + 1, n + 1), bool)
+    for a, b in (
+        ((slice(1, None), slice(None)), (slice(None, -1), slice(None))),
+        ((slice(None), slice(1, None)), (slice(None), slice(None, -1))),
+    ):
+        touch[runs[a], pieces[b]] = True
+        touch[runs[b], pieces[a]] = True
+    touch[0, :] = False
+    touch[:, 0] = False
+    apart = (touch.T.astype(np.int32) @ touch.astype(np.int32)) > 0
+    np.fill_diagonal(apart, False)
+    return pieces, apart
 
 
 def fill_from_ring(
@@ -161,7 +194,8 @@ def fill_from_ring(
     a large one along the ray there, and such a hole is often the band beside a
     silhouette. A hole inside the frame is filled whole; one at the frame's border
     only within ``border_fill_nodes`` of its ring (the fit is not trusted far into an
-    unknown void).
+    unknown void), and not at all where the surface beside it curves on to grazing
+    there (a column's limb, where the surface ends: :func:`_turns_grazing`).
     """
     known = np.isfinite(s)
     ring = ndimage.binary_dilation(region, iterations=settings.ring_nodes) & known
@@ -209,10 +243,47 @@ def fill_from_ring(
         if at_border:
             far = ndimage.distance_transform_cdt(~known, metric="chessboard")
             out[far > settings.border_fill_nodes] = np.nan
+            if node_angle is not None and _turns_grazing(
+                s, region, np.isfinite(out), node_angle, settings
+            ):
+                return None
             z_ok = (settings.min_depth_m <= out) & (out <= settings.max_depth_m)
             out[~z_ok] = np.nan
         return out
     return None
+
+
+def _turns_grazing(
+    s: FloatArray,
+    region: BoolArray,
+    fill: BoolArray,
+    node_angle: float,
+    settings: DepthSettings,
+) -> bool:
+    """Whether the surface beside the border hole ``region`` of ``s`` (rows, cols)
+    curves on to grazing incidence (beyond ``fill_max_incidence_deg``) at a node a
+    plane fitted to its ring would fill (``fill``): the limb of a column or a cone,
+    where the surface ends. A plane takes the ring's mean slope and carries the surface
+    on past its silhouette; a quadric fitted to the known nodes a few more nodes deep
+    (``ring_nodes`` + 2: enough to show a turn across a straight limb) shows it."""
+    near = ndimage.binary_dilation(region, iterations=settings.ring_nodes + 2)
+    rr, cc = np.nonzero(near & np.isfinite(s))
+    scale = float(max(s.shape))
+    a = _design(rr / scale, cc / scale, 2)
+    if a.shape[0] < 2 * a.shape[1]:
+        return False
+    got, _, rank, _ = np.linalg.lstsq(a, 1.0 / s[rr, cc], rcond=None)
+    if rank < a.shape[1]:
+        return False
+    coef: FloatArray = np.asarray(got, dtype=np.float64)
+    fr, fc = np.nonzero(fill)
+    r, c = fr / scale, fc / scale
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zq = 1.0 / (_design(r, c, 2) @ coef)
+        gr, gc = _gradient(r, c, 2, coef)
+        tan = np.hypot(gr, gc) / scale * zq / node_angle
+    limit = np.tan(np.radians(settings.fill_max_incidence_deg))
+    return bool(np.any(~np.isfinite(zq) | (zq <= 0) | (tan > limit)))
 
 
 def _gradient(
