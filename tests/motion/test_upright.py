@@ -26,20 +26,12 @@ def _worst(tremor: float, roll: float, yaw: float, from_s: float) -> tuple[float
     return worst
 
 
-SHORT = pytest.mark.xfail(
-    reason="falls short: 1.07 deg at seed 0 just after a move (the gyro carries the "
-    "estimate through the move, the dead band and the hold before the accelerometer is "
-    "used again leave the offset)",
-    strict=True,
-)
-
-
 @pytest.mark.parametrize(
     ("tremor", "roll", "yaw"),
     [
-        pytest.param(0.15, 12.0, 0.0, marks=SHORT),
+        (0.15, 12.0, 0.0),
         (0.3, 0.0, 35.0),
-        pytest.param(0.5, 20.0, 0.0, marks=SHORT),  # 1.56 deg
+        (0.5, 20.0, 0.0),
     ],
 )
 def test_held_still_the_content_stays_within_a_degree_of_upright_on_walls(
