@@ -20,11 +20,14 @@ rotation. The estimate is built in three steps:
    averaged over ``block_s`` and fitted there by a line in time (exponentially
    weighted least squares, memory ``memory_s``): the tremor that is left (7-13 Hz)
    averages out, a deliberate turn does not move gravity in G at all (followed at
-   once, by the gyro), and the line's slope is the drift of G: a gyro offset the bias
-   learning has not got right (under a strong tremor it learns it wrong by up to
-   0.03 rad/s, 1.7 degrees a second) tilts a plain average within seconds. The
-   slope is believed once the samples say more than ``drift_prior`` and is bounded by
-   ``max_drift``.
+   once, by the gyro), and the line's slope is the drift of G: the gyro's zero-rate
+   offset. The rate is integrated with its offset: an offset learnt while held still
+   is off by up to 0.03 rad/s under 0.5 degrees of tremor and moves as it is learnt,
+   while a constant one is a straight drift the fit follows. The caller's learnt
+   offset (``offset``) serves as the slope's prior (a ridge of ``drift_prior``
+   towards the drift it predicts: the fit starts from it and the samples outweigh
+   it within a second or two of use) and in the turn's test below. The slope is
+   bounded by ``max_drift``.
 3. **Trusted where the device is not being moved.** Samples are weighted down as
    their magnitude departs from gravity (``1 / (1 + (d / shake))^2``: a knock, a
    swing the lever does not explain), and not used while the device turns on purpose
@@ -65,8 +68,9 @@ class GravitySettings:
     block_s : float
         Samples are averaged over blocks of this length before the fit.
     drift_prior : float
-        The fit's ridge on the drift (weight-seconds^3: how much the samples must
-        say before a drift is believed).
+        The fit's ridge on the drift, towards the one the caller's offset predicts (0
+        without one; weight-seconds^3: how much the samples must say before they
+        outweigh it).
     max_drift : float
         The largest drift believed (rad/s: a gyro offset not learnt yet).
     shake : float
@@ -142,15 +146,19 @@ class _Trend:
         self.sx += we * x
         self.stx += we * tau * x
 
-    def at(self, t: float, max_drift: float) -> FloatArray | None:
-        """The line's value (3,) at ``t``; None without weight."""
+    def at(self, t: float, max_drift: float, spin: FloatArray | None = None) -> FloatArray | None:
+        """The line's value (3,) at ``t``; None without weight. ``spin`` (3,) rad/s: the
+        turn of the frame the caller expects (the drift's prior: ``spin x x``)."""
         s0, s1, s2 = self.s
         if s0 <= 1e-9:
             return None
+        stx = self.stx
+        if spin is not None:
+            stx = stx + self.drift_prior * np.cross(spin, self.sx / s0)
         s2 += self.drift_prior
         det = s0 * s2 - s1 * s1
-        m = (s2 * self.sx - s1 * self.stx) / det
-        v = (s0 * self.stx - s1 * self.sx) / det
+        m = (s2 * self.sx - s1 * stx) / det
+        v = (s0 * stx - s1 * self.sx) / det
         n = float(np.linalg.norm(m))
         limit = max_drift * n
         vn = float(np.linalg.norm(v))
@@ -193,11 +201,22 @@ class GravityFilter:
         self._block = np.zeros(5)  # sum w x (3), sum w, sum w t
         self._block_s = 0.0
         self._recent: deque[tuple[float, FloatArray, float]] = deque()  # used blocks
+        self._offset: FloatArray | None = None  # the caller's gyro offset, frame P
 
-    def update(self, t_ns: int, accel: FloatArray, rate: FloatArray, still: bool = True) -> None:
+    def update(
+        self,
+        t_ns: int,
+        accel: FloatArray,
+        rate: FloatArray,
+        still: bool = True,
+        offset: FloatArray | None = None,
+    ) -> None:
         """One sample: specific force (3,) m/s^2 and angular rate (3,) rad/s, frame P;
         ``still``: whether the caller sees the device held still (else the accelerometer
-        is not used, the gyro carries the estimate)."""
+        is not used, the gyro carries the estimate); ``offset`` (3,) rad/s: the gyro's
+        zero-rate offset as the caller knows it, taken out of the rate for the
+        deliberate turn's test only (the integrated rate keeps it: a constant offset is
+        a drift the fit follows, a learnt one that moves is not)."""
         s = self.settings
         a = np.asarray(accel, dtype=np.float64)
         w = np.asarray(rate, dtype=np.float64)
@@ -208,9 +227,11 @@ class GravityFilter:
             self._block[:] = 0.0
             self._block_s = 0.0
             dt = 0.1
+        if offset is not None:
+            self._offset = np.asarray(offset, dtype=np.float64)
         if dt > 0:
             self._R = self._R @ small_rotation(w * dt)
-            self._rate.update(w, dt)
+            self._rate.update(w if offset is None else w - np.asarray(offset, np.float64), dt)
             self._steps += 1
             if self._steps % 512 == 0:  # keep R a rotation
                 u, _, vt = np.linalg.svd(self._R)
@@ -305,6 +326,13 @@ class GravityFilter:
         out: FloatArray = f - A @ self.lever
         return out
 
+    def _spin(self) -> FloatArray | None:
+        """The drift of G the caller's offset predicts (its turn, in G), if given."""
+        if self._offset is None:
+            return None
+        out: FloatArray = self._R @ self._offset
+        return out
+
     @property
     def ready(self) -> bool:
         """Whether enough samples have been used to trust :attr:`up`."""
@@ -313,7 +341,7 @@ class GravityFilter:
     @property
     def up(self) -> FloatArray | None:
         """Up (3,) as a unit vector in frame P, None before any sample."""
-        g = self._trend.at(self._age_s, self.settings.max_drift)
+        g = self._trend.at(self._age_s, self.settings.max_drift, self._spin())
         if g is None:
             g = self._first
         if g is None:

@@ -45,9 +45,10 @@ def test_held_still_the_content_stays_within_a_degree_of_upright_on_walls(
     assert err <= 1.5, f"seed {seed}: {err:.2f} deg"
 
 
-def test_a_deliberate_20_degree_roll_is_followed_within_a_second() -> None:
+@pytest.mark.parametrize("tremor", [0.3, 0.5])
+def test_a_deliberate_20_degree_roll_is_followed_within_a_second(tremor: float) -> None:
     hand = HandMotion(
-        5.0, seed=7, tremor_deg=0.3, move_rad=0.0, move_m=0.0,
+        5.0, seed=7, tremor_deg=tremor, move_rad=0.0, move_m=0.0,
         roll_move_deg=20.0, roll_move_at_s=2.5, roll_move_s=0.4,
     )  # fmt: skip
     trace = trace_upright(hand, 7, CALIBRATED, every=1, from_s=2.0)
