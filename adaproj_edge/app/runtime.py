@@ -260,10 +260,11 @@ class Runtime:
         change = self.motion.update(sample)
         R = self.calibration.R_P_I
         accel = R @ (np.asarray(sample.accel, dtype=np.float64) - self.calibration.accel_offset)
-        rate = R @ (np.asarray(sample.gyro, dtype=np.float64) - self.motion.bias.value)
+        rate = R @ np.asarray(sample.gyro, dtype=np.float64)
         # gravity decides by itself when the accelerometer can be used (the tracker's
-        # "moving" also counts a tremor too strong for the depth average)
-        self.upright.update(sample.sensor_ns, accel, rate)
+        # "moving" also counts a tremor too strong for the depth average); it integrates
+        # the rate with its offset (a drift it fits), the learnt offset only tells turns
+        self.upright.update(sample.sensor_ns, accel, rate, True, R @ self.motion.bias.value)
         if change is True:
             self._motion_ns = sample.receive_ns
             self._event("moving")

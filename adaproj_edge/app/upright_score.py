@@ -1,7 +1,7 @@
 """The content's "up" scored on a simulated hand without the warp pipeline.
 
-The runtime's chain from IMU samples to the warps' up (the motion tracker's stillness
-and gyro bias, :class:`~adaproj_edge.motion.upright.Upright`) is fed the samples the
+The runtime's chain from IMU samples to the warps' up (the motion tracker's gyro
+bias, :class:`~adaproj_edge.motion.upright.Upright`) is fed the samples the
 simulator's IMU would report of a :class:`~adaproj_edge.session.hand.HandMotion`
 (noise, offsets and quantisation included; no depth frames, no warps). Each up is
 turned into the world with the hand's rotation *without its tremor* (what the
@@ -94,8 +94,7 @@ def trace_upright(
         ts = T0_NS + round(t[i] * 1e9)
         sample = ImuSample(ts, ts, tuple(acc[i]), tuple(gyr[i]), 30.0)
         tracker.update(sample)
-        rate = R @ (gyr[i] - tracker.bias.value)
-        chain.update(ts, R @ (acc[i] - cal.accel_offset), rate)
+        chain.update(ts, R @ (acc[i] - cal.accel_offset), R @ gyr[i], True, R @ tracker.bias.value)
         if i % every == 0 and t[i] >= from_s:
             up = chain.up
             keep_t.append(float(t[i]))

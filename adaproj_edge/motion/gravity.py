@@ -15,22 +15,30 @@ rotation. The estimate is built in three steps:
    difference). It removes most of the tremor's swing whatever the lever's length, and
    learns no lever from a device that does not turn (``rho`` stays 0). For the first
    ``warmup_s`` only the lever is learnt.
-2. **Averaged in a frame that does not turn.** Each corrected sample is turned by the
-   integrated gyro into a frame G fixed in the world (up to the gyro's drift) and
-   low-passed there by ``stages`` first-order low-passes of ``tau_s`` each: the tremor
-   that is left (7-13 Hz) is cut by ``(2 pi f tau)^stages``, while a deliberate turn
-   does not move gravity in G at all: it is followed at once, by the gyro. Until
-   ``tau_s`` of samples have been used, every stage is one running mean of them (a
-   start without a transient).
+2. **Fitted in a frame that does not turn.** Each corrected sample is turned by the
+   integrated gyro into a frame G fixed in the world (up to the gyro's drift),
+   averaged over ``block_s`` and fitted there by a line in time (exponentially
+   weighted least squares, memory ``memory_s``): the tremor that is left (7-13 Hz)
+   averages out, a deliberate turn does not move gravity in G at all (followed at
+   once, by the gyro), and the line's slope is the drift of G: the gyro's zero-rate
+   offset. The rate is integrated with its offset: an offset learnt while held still
+   is off by up to 0.03 rad/s under 0.5 degrees of tremor and moves as it is learnt,
+   while a constant one is a straight drift the fit follows. The caller's learnt
+   offset (``offset``) serves as the slope's prior (a ridge of ``drift_prior``
+   towards the drift it predicts: the fit starts from it and the samples outweigh
+   it within a second or two of use) and in the turn's test below. The slope is
+   bounded by ``max_drift``.
 3. **Trusted where the device is not being moved.** Samples are weighted down as
    their magnitude departs from gravity (``1 / (1 + (d / shake))^2``: a knock, a
    swing the lever does not explain), and not used while the device turns on purpose
    (the gyro rate low-passed by ``rate_tau_s``, over ``max_rate``, and ``hold_s``
    after) or while the caller says it moves (``still=False``): a deliberate move
-   accelerates the device slowly, which no low-pass takes out. Meanwhile the gyro
-   carries the estimate.
+   accelerates the device slowly, which no low-pass takes out. The rate's low-pass
+   shows a turn late while its acceleration is there from its start, so the blocks
+   used in the ``recall_s`` before a turn is seen are taken back out of the fit.
+   Meanwhile the gyro carries the estimate.
 
-The estimate in P is the low-passed direction in G turned back by the integrated gyro.
+The estimate in P is the fitted line's value now, turned back by the integrated gyro.
 The accelerometer's zero-g offset tilts the result directly (10 mg is 0.6 degrees):
 a unit's offset must be calibrated for the content to stand upright within a degree.
 """
@@ -38,6 +46,7 @@ a unit's offset must be calibrated for the content to stand upright within a deg
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,10 +62,17 @@ STANDARD_GRAVITY = 9.80665
 class GravitySettings:
     """Tuning of the gravity estimate (seconds, m/s^2, rad/s, metres).
 
-    tau_s : float
-        Time constant of each low-pass of the specific force in the non-turning frame.
-    stages : int
-        How many of those low-passes in a row.
+    memory_s : float
+        Memory of the trend's weighted least squares in the non-turning frame (the
+        weight of a sample falls by ``e`` every ``memory_s``).
+    block_s : float
+        Samples are averaged over blocks of this length before the fit.
+    drift_prior : float
+        The fit's ridge on the drift, towards the one the caller's offset predicts (0
+        without one; weight-seconds^3: how much the samples must say before they
+        outweigh it).
+    max_drift : float
+        The largest drift believed (rad/s: a gyro offset not learnt yet).
     shake : float
         Magnitude departure from gravity (after the lever is taken out) at which a
         sample's weight is a quarter.
@@ -66,6 +82,9 @@ class GravitySettings:
         Time constant of each of the two low-passes of that rate (the tremor out).
     hold_s : float
         Seconds after a deliberate turn before the accelerometer is used again.
+    recall_s : float
+        Samples used within this many seconds before a deliberate turn is seen are
+        taken back out (the turn's rate shows late, its acceleration at once).
     lever_tau_s : float
         Memory of the lever's least squares (seconds).
     max_lever : float
@@ -77,12 +96,15 @@ class GravitySettings:
         Seconds of used samples before the estimate is trusted.
     """
 
-    tau_s: float = 0.25
-    stages: int = 3
+    memory_s: float = 4.0
+    block_s: float = 0.02
+    drift_prior: float = 0.05
+    max_drift: float = 0.05
     shake: float = 3.0
     max_rate: float = 0.04
     rate_tau_s: float = 0.15
     hold_s: float = 0.3
+    recall_s: float = 0.5
     lever_tau_s: float = 3.0
     max_lever: float = 1.0
     warmup_s: float = 0.3
@@ -91,6 +113,59 @@ class GravitySettings:
 
 def _skew(v: FloatArray) -> FloatArray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+class _Trend:
+    """Exponentially weighted least squares of a 3-vector's line in time, ``x(t) = m +
+    v (t - t_ref)``, with ``t_ref`` the newest time; a block can be taken back out."""
+
+    def __init__(self, memory_s: float, drift_prior: float) -> None:
+        self.memory_s, self.drift_prior = memory_s, drift_prior
+        self.t_ref = 0.0
+        self.s = np.zeros(3)  # sum w, sum w tau, sum w tau^2
+        self.sx = np.zeros(3)
+        self.stx = np.zeros(3)
+
+    def advance(self, t: float) -> None:
+        """Move the reference time to ``t`` (later): the sums forget and are rebased."""
+        d = t - self.t_ref
+        if d <= 0:
+            return
+        f = math.exp(-d / self.memory_s)
+        s0, s1, s2 = self.s * f
+        self.s = np.array([s0, s1 - d * s0, s2 - 2 * d * s1 + d * d * s0])
+        self.stx = (self.stx - d * self.sx) * f
+        self.sx = self.sx * f
+        self.t_ref = t
+
+    def add(self, t: float, x: FloatArray, w: float) -> None:
+        """Add (``w`` > 0) or take back out (``w`` < 0) a block at time ``t`` <= t_ref."""
+        we = w * math.exp(-(self.t_ref - t) / self.memory_s)
+        tau = t - self.t_ref
+        self.s += we * np.array([1.0, tau, tau * tau])
+        self.sx += we * x
+        self.stx += we * tau * x
+
+    def at(self, t: float, max_drift: float, spin: FloatArray | None = None) -> FloatArray | None:
+        """The line's value (3,) at ``t``; None without weight. ``spin`` (3,) rad/s: the
+        turn of the frame the caller expects (the drift's prior: ``spin x x``)."""
+        s0, s1, s2 = self.s
+        if s0 <= 1e-9:
+            return None
+        stx = self.stx
+        if spin is not None:
+            stx = stx + self.drift_prior * np.cross(spin, self.sx / s0)
+        s2 += self.drift_prior
+        det = s0 * s2 - s1 * s1
+        m = (s2 * self.sx - s1 * stx) / det
+        v = (s0 * stx - s1 * self.sx) / det
+        n = float(np.linalg.norm(m))
+        limit = max_drift * n
+        vn = float(np.linalg.norm(v))
+        if vn > limit:
+            v = v * (limit / vn)
+        out: FloatArray = m + v * (t - self.t_ref)
+        return out
 
 
 class GravityFilter:
@@ -108,8 +183,10 @@ class GravityFilter:
 
     def reset(self) -> None:
         """Forget the estimate (after an IMU fault)."""
+        s = self.settings
         self._R = np.eye(3)  # R_G_P: the integrated gyro
-        self._stages: list[FloatArray] | None = None
+        self._trend = _Trend(s.memory_s, s.drift_prior)
+        self._first: FloatArray | None = None  # in G, while nothing is fitted
         self._last_ns: int | None = None
         self._used_s = 0.0
         self._prev: tuple[FloatArray, FloatArray, float] | None = None  # accel, rate, dt
@@ -121,11 +198,25 @@ class GravityFilter:
         self._steps = 0
         self._quiet_s = math.inf  # since the last deliberate turn (none yet)
         self._age_s = 0.0  # since the first sample
+        self._block = np.zeros(5)  # sum w x (3), sum w, sum w t
+        self._block_s = 0.0
+        self._recent: deque[tuple[float, FloatArray, float]] = deque()  # used blocks
+        self._offset: FloatArray | None = None  # the caller's gyro offset, frame P
 
-    def update(self, t_ns: int, accel: FloatArray, rate: FloatArray, still: bool = True) -> None:
+    def update(
+        self,
+        t_ns: int,
+        accel: FloatArray,
+        rate: FloatArray,
+        still: bool = True,
+        offset: FloatArray | None = None,
+    ) -> None:
         """One sample: specific force (3,) m/s^2 and angular rate (3,) rad/s, frame P;
         ``still``: whether the caller sees the device held still (else the accelerometer
-        is not used, the gyro carries the estimate)."""
+        is not used, the gyro carries the estimate); ``offset`` (3,) rad/s: the gyro's
+        zero-rate offset as the caller knows it, taken out of the rate for the
+        deliberate turn's test only (the integrated rate keeps it: a constant offset is
+        a drift the fit follows, a learnt one that moves is not)."""
         s = self.settings
         a = np.asarray(accel, dtype=np.float64)
         w = np.asarray(rate, dtype=np.float64)
@@ -133,10 +224,14 @@ class GravityFilter:
         self._last_ns = t_ns
         if dt > 0.1:  # a gap: the lever's difference and the samples held are stale
             self._prev = self._prev_rate = None
+            self._block[:] = 0.0
+            self._block_s = 0.0
             dt = 0.1
+        if offset is not None:
+            self._offset = np.asarray(offset, dtype=np.float64)
         if dt > 0:
             self._R = self._R @ small_rotation(w * dt)
-            self._rate.update(w, dt)
+            self._rate.update(w if offset is None else w - np.asarray(offset, np.float64), dt)
             self._steps += 1
             if self._steps % 512 == 0:  # keep R a rotation
                 u, _, vt = np.linalg.svd(self._R)
@@ -146,17 +241,15 @@ class GravityFilter:
         self._prev = (a, w, dt)
         self._prev_rate = None if prev is None else prev[1]
         if prev is None or prev_rate is None or dt <= 0 or prev[2] <= 0:
-            if self._stages is None and prev is None:
-                self._start(a)
+            if self._first is None and prev is None:
+                self._first = self._R @ a
             return
         # the previous sample, its angular acceleration a central difference
         a_prev, w_prev, dt_prev = prev
         alpha = (w - prev_rate) / (dt + dt_prev)
         f = self._unlevered(a_prev, w_prev, alpha, dt_prev)
-        if self._stages is None:
-            self._start(f)
-            return
         self._age_s += dt_prev
+        t_prev = self._age_s
         if self._age_s < s.warmup_s:
             # the lever is being learnt (its swing still in the samples); the rate's
             # low-pass starts with a transient of the tremor (not checked for two of its
@@ -166,31 +259,53 @@ class GravityFilter:
         turning = not settling and float(np.linalg.norm(self._rate.value)) > s.max_rate
         if not still or turning:
             self._quiet_s = 0.0
+            self._recall(t_prev - s.recall_s)
+            self._block[:] = 0.0
+            self._block_s = 0.0
             return
         self._quiet_s += dt_prev
         if self._quiet_s < s.hold_s:
             return
         dev = abs(float(np.linalg.norm(f)) - STANDARD_GRAVITY) / s.shake
-        weight = 1.0 / (1.0 + dev) ** 2
-        first = self._used_s == 0.0
-        self._used_s += dt_prev * weight
+        weight = dt_prev / (1.0 + dev) ** 2
         # R_G_P one sample ago: this sample's rotation undone
-        R_prev = self._R @ small_rotation(-w * dt)
-        x = R_prev @ f
-        k = 1.0 if first else min(1.0, weight * dt_prev / min(self._used_s, s.tau_s))
-        if self._used_s < s.tau_s:  # starting: one running mean, every stage at it
-            mean = self._stages[0]
-            mean += k * (x - mean)
-            for stage in self._stages[1:]:
-                stage[:] = mean
-            return
-        for stage in self._stages:
-            stage += k * (x - stage)
-            x = stage
+        x = (self._R @ small_rotation(-w * dt)) @ f
+        self._block[:3] += weight * x
+        self._block[3] += weight
+        self._block[4] += weight * t_prev
+        self._block_s += dt_prev
+        if self._block_s >= s.block_s:
+            self._flush()
 
-    def _start(self, f: FloatArray) -> None:
-        g = self._R @ f
-        self._stages = [g.copy() for _ in range(self.settings.stages)]
+    def _flush(self) -> None:
+        wsum = float(self._block[3])
+        if wsum > 0:
+            t = float(self._block[4]) / wsum
+            x = self._block[:3] / wsum
+            self._trend.advance(self._age_s)
+            self._trend.add(t, x, wsum)
+            self._recent.append((t, x, wsum))
+            self._used_s += wsum
+        self._block[:] = 0.0
+        self._block_s = 0.0
+        while self._recent and self._recent[0][0] < self._age_s - self.settings.recall_s:
+            self._recent.popleft()
+
+    def _recall(self, since: float) -> None:
+        """Take the blocks used after ``since`` (seconds of age) back out (all of them:
+        the estimate before them is kept)."""
+        before = self._trend.at(self._age_s, self.settings.max_drift)
+        while self._recent and self._recent[-1][0] >= since:
+            t, x, w = self._recent.pop()
+            self._trend.add(t, x, -w)
+            self._used_s -= w
+        if self._used_s < 1e-9:
+            self._used_s = 0.0
+            if before is not None:
+                self._first = before
+            self._trend.s[:] = 0.0
+            self._trend.sx[:] = 0.0
+            self._trend.stx[:] = 0.0
 
     def _unlevered(self, f: FloatArray, w: FloatArray, alpha: FloatArray, dt: float) -> FloatArray:
         """``f`` with the swing about the centre of rotation taken out; the lever's
@@ -211,16 +326,26 @@ class GravityFilter:
         out: FloatArray = f - A @ self.lever
         return out
 
+    def _spin(self) -> FloatArray | None:
+        """The drift of G the caller's offset predicts (its turn, in G), if given."""
+        if self._offset is None:
+            return None
+        out: FloatArray = self._R @ self._offset
+        return out
+
     @property
     def ready(self) -> bool:
         """Whether enough samples have been used to trust :attr:`up`."""
-        return self._stages is not None and self._used_s >= self.settings.settle_s
+        return self._used_s >= self.settings.settle_s
 
     @property
     def up(self) -> FloatArray | None:
         """Up (3,) as a unit vector in frame P, None before any sample."""
-        if self._stages is None:
+        g = self._trend.at(self._age_s, self.settings.max_drift, self._spin())
+        if g is None:
+            g = self._first
+        if g is None:
             return None
-        g = self._R.T @ self._stages[-1]
+        g = self._R.T @ g
         n = float(np.linalg.norm(g))
         return None if n == 0.0 else g / n

@@ -73,10 +73,17 @@ class Upright:
         self._chasing = False
         self._last_ns = None
 
-    def update(self, t_ns: int, accel: FloatArray, rate: FloatArray, still: bool = True) -> None:
+    def update(
+        self,
+        t_ns: int,
+        accel: FloatArray,
+        rate: FloatArray,
+        still: bool = True,
+        offset: FloatArray | None = None,
+    ) -> None:
         """One sample (as :meth:`GravityFilter.update`)."""
         s = self.settings
-        self.gravity.update(t_ns, accel, rate, still)
+        self.gravity.update(t_ns, accel, rate, still, offset)
         dt = 0.0 if self._last_ns is None else min(0.1, max(0.0, (t_ns - self._last_ns) * 1e-9))
         self._last_ns = t_ns
         g = self.gravity.up

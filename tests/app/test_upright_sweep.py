@@ -6,8 +6,9 @@ Each case runs the runtime's IMU chain on ten simulated hands
 (:func:`~adaproj_edge.app.upright_score.trace_upright`: no depth, no warps; about a
 third of a second each) and scores the largest angle while the hand holds still. The
 target is a degree on walls (``tools/bench_handheld.py --only sweep`` runs the whole
-sweep); at 0.3 degrees of tremor and more it is not met yet (a deliberate move's
-acceleration read as gravity, ``docs/handheld.md``).
+sweep); met up to 0.3 degrees of tremor here, with the gravity estimate fitting the
+drift of the gyro's offset itself (``docs/handheld.md``); at 0.5 degrees the worst of
+these 4-s hands is 1.4 degrees (seed 8), not asserted.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ def _worst(tremor: float, roll: float) -> tuple[float, int]:
     return worst
 
 
-@pytest.mark.parametrize(("tremor", "roll"), [(0.05, 0.0), (0.15, 30.0)])
+@pytest.mark.parametrize(("tremor", "roll"), [(0.05, 0.0), (0.15, 30.0), (0.3, 12.0)])
 def test_the_worst_seed_keeps_walls_upright(tremor: float, roll: float) -> None:
     err, seed = _worst(tremor, roll)
     assert np.isfinite(err) and err <= 1.0, f"{err:.2f} deg at seed {seed}"

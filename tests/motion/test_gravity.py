@@ -72,3 +72,25 @@ def test_a_shaking_hand_on_a_wrist_lever_leaves_gravity_within_a_fifth_of_a_degr
             errs.append(_angle(g.up, up_true[k]))
     assert max(errs) < 0.2
     assert abs(float(np.linalg.norm(g.lever)) - 0.3) < 0.02
+
+
+def test_a_gyro_offset_not_learnt_does_not_tilt_the_estimate() -> None:
+    """A gyro offset of 0.02 rad/s about the optical axis left in the rates (what the
+    bias learning is off by under a strong tremor), the accelerometer usable three
+    quarters of the time (the caller says the device moves half a second in two): the
+    drift of the non-turning frame is fitted, not followed with a lag nor carried
+    while the accelerometer is not used. The bound: 0.3 degrees against 1.1 degrees a
+    second of drift (the low-passed average this replaced was 2 degrees off)."""
+    rng = np.random.default_rng(1)
+    up_true = np.array([0.0, -1.0, 0.0])
+    offset = np.array([0.0, 0.0, 0.02])
+    f = GravityFilter()
+    errs = []
+    for k in range(int(6 * RATE_HZ)):
+        t = k / RATE_HZ
+        a = up_true * STANDARD_GRAVITY + rng.normal(scale=0.3, size=3)
+        f.update(int(t * 1e9), a, offset + rng.normal(scale=0.002, size=3), (t % 2.0) < 1.5)
+        if t >= 3.0:
+            assert f.up is not None
+            errs.append(_angle(f.up, up_true))
+    assert max(errs) < 0.3, f"{max(errs):.2f} deg"
