@@ -176,3 +176,26 @@ def test_imu_samples_made_ahead_show_a_move_told_after_they_were_made() -> None:
     imu = w.settings.imu
     assert np.abs(acc - f_p @ R_I_P.T).max() <= imu.accel_scale / 2 + 1e-9
     assert np.abs(gyr - w_p @ R_I_P.T).max() <= imu.gyro_scale / 2 + 1e-9
+
+
+def test_the_light_on_a_turned_wall_is_lambert_s() -> None:
+    """A wall turned 30 degrees, 2 m ahead, albedo 1: each camera point lit by projector
+    pixel (u, v) gets cos(incidence) x (1.5 m / distance)^2, the point computed here
+    from (u, v) and the wall's equation. ``uv`` and ``light`` are float32 (relative
+    rounding 6e-8, the point's ~1e-7 over the wall's ~1000 px), so 1e-5 is far above."""
+    c, s = np.cos(np.radians(30.0)), np.sin(np.radians(30.0))
+    v = np.array([[x * c, y, 2.0 + x * s] for x, y in ((-3, -2), (3, -2), (3, 2), (-3, 2))])
+    scene = Scene(MeshSurface("wall", v, np.array([[0, 1, 2], [0, 2, 3]])), {"kind": "mesh"})
+    rig = Calibration.default()
+    optics = CameraOptics(albedo_texture=0.0, supersample=2)
+    view = lit_view(scene, rig, np.eye(3), np.zeros(3), rig.depth.intrinsics_at(160, 100),
+                    (160, 100), optics)  # fmt: skip
+    lit = view.uv[..., 0] > -5
+    assert lit.mean() > 0.15  # the projector lights a quarter of the camera's view
+    uv = view.uv[lit].astype(np.float64)
+    rays = np.c_[uv, np.ones(len(uv))] @ np.linalg.inv(rig.projector.K).T
+    n = np.array([s, 0.0, -c])
+    points = rays * ((n @ [0.0, 0.0, 2.0]) / (rays @ n))[:, None]
+    dist = np.linalg.norm(points, axis=1)
+    truth = np.abs(points @ n) / dist * (optics.reference_m / dist) ** 2
+    assert np.abs(view.light[lit] / truth - 1).max() < 1e-5
