@@ -96,6 +96,9 @@ class ReplayOptions:
     settings: AppSettings = field(default_factory=AppSettings)
     all_frames: bool = False
     score: bool = True
+    # with score: each content-aware update's distortion on the truth too (False: the
+    # hand-held measures only, a third of a simulated session's replay the cheaper)
+    distortion: bool = True
     side_views: bool = True  # a few moments seen from the side, in the contact sheet
     stabilise: bool = True  # False: the display loop shows frames as rendered (margin 0)
     # replaces the session's calibration (its depth model stays the session's)
@@ -103,7 +106,7 @@ class ReplayOptions:
 
     def app_settings(self) -> AppSettings:
         """The runtime's settings for this replay."""
-        s = replace(self.settings, keep_shown_map=self.score)
+        s = replace(self.settings, keep_shown_map=self.score and self.distortion)
         if not self.stabilise:
             d = s.display
             s = replace(s, display=replace(d, stabiliser=replace(d.stabiliser, margin=0.0)))
@@ -198,7 +201,7 @@ def _replay(
     spec_raw = scan.attachments.get(schemas.TRUTH_SURFACE_ATTACHMENT)
     if options.score and spec_raw is not None:
         scene = scene_of_session(json.loads(spec_raw), scan.attachments)
-        scorer = Scorer(scene, rt, scan.attachments)
+        scorer = Scorer(scene, rt, scan.attachments) if options.distortion else None
         handheld = HandheldScorer(
             scene,
             scoring_projector(scan.attachments, cal.projector),

@@ -6,7 +6,8 @@ coordinates (u right, v down, heights positive away from the projector). A ray m
 where ``F(t) = w(t) - h(u(t), v(t)) = 0``; while the relief's slope along the ray is
 below the ray's steepness toward the wall, ``F`` increases monotonically, so the root
 is unique and Newton's method inside the bracket given by the heights' range (a
-bisection step whenever Newton leaves it) finds it to rounding error.
+bisection step whenever Newton leaves it) finds it to rounding error, each ray
+iterating until its own step is below :data:`NEWTON_TOL`.
 
 * :class:`Bumps` - round bumps and dents of several sizes (doubly curved: not
   developable), from larger than a grid cell to a quarter of one.
@@ -56,33 +57,44 @@ class _Relief:
         return np.zeros(np.shape(points)[:-1], dtype=np.intp)
 
     def intersect(self, origins: FloatArray, dirs: FloatArray) -> FloatArray:
-        """Ray parameter t (...) of the hit; NaN where the ray does not go toward the wall."""
+        """Ray parameter t (...) of the hit; NaN where the ray does not go toward the wall.
+
+        Each ray stops once its own step is below :data:`NEWTON_TOL`: the iterations
+        run on the rays still moving only (a few rays that need bisection steps no
+        longer keep every other ray iterating)."""
         o = self.to_wall(np.asarray(origins, dtype=np.float64))
         d = np.asarray(dirs, dtype=np.float64) @ self._frame().T
         lo_h, hi_h = self.span()
         toward = d[..., 2] > 1e-12
         dw = np.where(toward, d[..., 2], 1.0)
-        lo = (lo_h - o[..., 2]) / dw
-        hi = (hi_h - o[..., 2]) / dw
-        t = np.clip(-o[..., 2] / dw, lo, hi)
+        t_all = np.clip(-o[..., 2] / dw, (lo_h - o[..., 2]) / dw, (hi_h - o[..., 2]) / dw)
+        # the rays toward the wall, flat; each array below holds the rays still moving
+        idx = np.flatnonzero(toward)
+        t_flat = t_all.reshape(-1)
+        ox, oy, oz = (o[..., k].reshape(-1)[idx] for k in range(3))
+        dx, dy, dz = (d[..., k].reshape(-1)[idx] for k in range(3))
+        lo, hi = (lo_h - oz) / dz, (hi_h - oz) / dz
+        t = t_flat[idx]
         for _ in range(NEWTON_STEPS):
-            u = o[..., 0] + t * d[..., 0]
-            v = o[..., 1] + t * d[..., 1]
-            h, hu, hv = self.height(u, v)
-            f = o[..., 2] + t * d[..., 2] - h
+            if idx.size == 0:
+                break
+            h, hu, hv = self.height(ox + t * dx, oy + t * dy)
+            f = oz + t * dz - h
             # F grows with t: a root lies above t where F < 0
             lo = np.where(f < 0, t, lo)
             hi = np.where(f > 0, t, hi)
-            slope = d[..., 2] - hu * d[..., 0] - hv * d[..., 1]
+            slope = dz - hu * dx - hv * dy
             with np.errstate(divide="ignore", invalid="ignore"):
                 newton = t - f / slope
-            inside = (slope > 0) & (newton > lo) & (newton < hi)
+            # a Newton step below the tolerance is the root (it may round onto a bound)
+            close = np.abs(newton - t) < NEWTON_TOL
+            inside = close | ((slope > 0) & (newton > lo) & (newton < hi))
             t_new = np.where(inside, newton, 0.5 * (lo + hi))
-            done = float(np.max(np.abs(np.where(toward, t_new - t, 0.0)), initial=0.0))
-            t = t_new
-            if done < NEWTON_TOL:
-                break
-        return np.where(toward & (t > 1e-9), t, np.nan)
+            t_flat[idx] = t_new
+            moving = ~(np.abs(t_new - t) < NEWTON_TOL)
+            idx, t, lo, hi = idx[moving], t_new[moving], lo[moving], hi[moving]
+            ox, oy, oz, dx, dy, dz = (a[moving] for a in (ox, oy, oz, dx, dy, dz))
+        return np.where(toward & (t_all > 1e-9), t_all, np.nan)
 
 
 @dataclass(frozen=True)

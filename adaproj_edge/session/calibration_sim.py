@@ -79,6 +79,7 @@ from adaproj_edge.session.writer import SessionWriter
 
 MOVE_S = 1.5
 REACTION_S = 0.6
+IMU_AHEAD_S = 0.25  # below REACTION_S: the path is settled that far ahead
 
 # Stops for a scene in front of the device at 1.3-2 m: (tx, ty, tz, rx, ry, rz),
 # metres and rotation vector (radians) in W. Distances vary by ~1.6x; the turns from
@@ -182,6 +183,12 @@ class SimWorld:
         return out
 
 
+def pose_key(R: FloatArray, t: FloatArray) -> bytes:
+    """A key (bytes) equal for equal poses (``R`` (3, 3), ``t`` (3,), rounded to 1e-9):
+    what is rendered at a pose is kept while the device rests there."""
+    return np.round(np.r_[R.ravel(), t], 9).tobytes()
+
+
 class SimDisplay:
     """The projector: shows frames, which reach the wall after the rig's latency."""
 
@@ -264,7 +271,7 @@ class SimCamera(FixedCamera):
     def _lit(self, t_ns: int) -> tuple[bytes, LitView]:
         w = self.world
         R, p = w.pose(t_ns)
-        key = np.round(np.r_[R.ravel(), p], 9).tobytes()
+        key = pose_key(R, p)
         if self._view is None or self._view[0] != key:
             self._clean.clear()
             view = lit_view(w.scene, w.rig, R, p, self._K, self._size, w.settings.optics,
@@ -299,6 +306,7 @@ class SimDepth:
     def __init__(self, world: SimWorld) -> None:
         self.world = world
         self._queue = _Queue(world, world.settings.depth_fps, 0.031, 35_000_000)
+        self._points: tuple[bytes, FloatArray] | None = None  # of the last pose
 
     @property
     def model(self) -> DepthCameraModel:
@@ -312,8 +320,11 @@ class SimDepth:
         seq, sensor, receive = self._queue.take()
         R, p = w.pose(sensor)
         T, d = w.rig.T_P_D, w.rig.depth
-        pts = w.scene.points_seen(d.K, d.width, d.height, R @ T[:3, :3], R @ T[:3, 3] + p)
-        depth = stereo_depth(pts, d, w.settings.stereo, w.rng)
+        key = pose_key(R, p)
+        if self._points is None or self._points[0] != key:  # the device rests between moves
+            pts = w.scene.points_seen(d.K, d.width, d.height, R @ T[:3, :3], R @ T[:3, 3] + p)
+            self._points = (key, pts)
+        depth = stereo_depth(self._points[1], d, w.settings.stereo, w.rng)
         return DepthFrame(sensor, receive, seq, depth)
 
     def close(self) -> None:
@@ -324,8 +335,9 @@ class SimDepth:
 class SimImu:
     """LSM6DSOX-like samples of the device's motion in the true rig's IMU frame.
 
-    Samples are made in blocks, every one due by the clock's time at once (the path
-    up to now is settled: the user's moves start in the future)."""
+    Samples are made in blocks reaching :data:`IMU_AHEAD_S` past the clock's time and
+    handed out when due: the path is settled that far ahead (a move the user is told
+    to make starts :data:`REACTION_S` after it is heard, a shake later still)."""
 
     def __init__(self, world: SimWorld) -> None:
         self.world = world
@@ -336,7 +348,8 @@ class SimImu:
         self.accel_bias = rng.normal(scale=n.accel_bias_sigma, size=3)
         self.gyro_bias = rng.normal(scale=n.gyro_bias_sigma, size=3)
         self.k = 0
-        self._ready: list[ImuSample] = []
+        self._ready: list[ImuSample] = []  # made; those from ``_next`` on not yet read
+        self._next = 0
 
     def _make(self, k1: int) -> None:
         """Samples ``self.k`` to ``k1 - 1``."""
@@ -365,12 +378,20 @@ class SimImu:
         self.k = k1
 
     def read(self) -> ImuSample | None:
-        """The oldest sample not yet read, made up to the clock's time; None when none is due."""
-        if not self._ready:
-            due = (self.world.clock.now_ns() - 400_000 - T0_NS) // self.dt_ns + 1
-            if due > self.k:
-                self._make(int(due))
-        return self._ready.pop(0) if self._ready else None
+        """The oldest sample not yet read, if it is due by the clock's time; None when none
+        is."""
+        now = self.world.clock.now_ns()
+        if self._next >= len(self._ready):
+            due = (now - 400_000 - T0_NS) // self.dt_ns + 1
+            if due <= self.k:
+                return None
+            self._ready, self._next = [], 0
+            self._make(int(due) + round(IMU_AHEAD_S * 1e9) // self.dt_ns)
+        sample = self._ready[self._next]
+        if sample.receive_ns > now:
+            return None
+        self._next += 1
+        return sample
 
     def close(self) -> None:
         """Nothing to release."""

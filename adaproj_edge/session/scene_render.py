@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import FloatArray, Image
 from adaproj_edge.geometry.calibration import Calibration, DepthCameraModel
 from adaproj_edge.session.simulator import Scene
+from adaproj_edge.session.stereo import normals_cos
 
 
 @dataclass(frozen=True)
@@ -133,13 +134,8 @@ def lit_view(
         z = pts_p[..., 2]
         seen = inside & ~(z > np.where(np.isfinite(z_first), z_first, np.inf) * 1.01 + 0.005)
     # Lambertian falloff from the projector
-    dx = np.gradient(pts_p, axis=1)
-    dy = np.gradient(pts_p, axis=0)
-    normal = np.cross(dx, dy)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
-        dist = np.linalg.norm(pts_p, axis=-1)
-        cos = np.abs(np.sum(normal * pts_p, axis=-1)) / dist
+    dist = np.linalg.norm(pts_p, axis=-1)
+    cos = normals_cos(pts_p)
     cos = np.where(np.isfinite(cos), cos, 0.0)
     pts_w = pts_p @ R_W_P.T + t_W_P
     albedo = np.where(np.isfinite(z), _albedo(pts_w, optics.albedo_texture), 0.0)

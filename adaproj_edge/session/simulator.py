@@ -29,6 +29,7 @@ partition).
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import os
@@ -181,12 +182,23 @@ class Scene:
         A mesh is cast in one call through its BVH (built once per scene); the rays
         have z = 1 in the camera frame, so the hit's ray parameter is its depth.
         """
-        rays = Projector(K, width, height).rays(Projector(K, width, height).pixel_grid())
+        rays = pixel_rays(np.asarray(K, np.float64).tobytes(), int(width), int(height))
         if isinstance(self.surface, MeshSurface):
             z = self.surface.intersect(np.asarray(t_W_C, dtype=np.float64), rays @ R_W_C.T)
             return rays * z[..., None]
         hits = ray_cast(self.surface, t_W_C, rays @ R_W_C.T)
         return (hits - t_W_C) @ R_W_C
+
+
+@functools.lru_cache(maxsize=4)
+def pixel_rays(K: bytes, width: int, height: int) -> FloatArray:
+    """The rays (height, width, 3), z = 1, of every pixel of a camera with intrinsics
+    ``K`` (the bytes of its (3, 3) float64), read-only: kept for the next frame, as
+    a session casts the same camera's pixels every frame."""
+    p = Projector(np.frombuffer(K, np.float64).reshape(3, 3), width, height)
+    rays = p.rays(p.pixel_grid())
+    rays.flags.writeable = False
+    return rays
 
 
 def true_surface(

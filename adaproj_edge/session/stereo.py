@@ -100,14 +100,21 @@ def default_noise() -> StereoNoise:
 
 
 def normals_cos(points: FloatArray) -> FloatArray:
-    """|cos| of the angle between the surface normal and the view ray, (h, w); NaN = none."""
-    dx = np.gradient(points, axis=1)
-    dy = np.gradient(points, axis=0)
-    n = np.cross(dx, dy)
+    """|cos| of the angle between the surface normal and the view ray, (h, w); NaN = none.
+
+    The normal is the cross product of the point map's gradients along the rows and
+    the columns, worked out component by component (the point map's channels are
+    views: no (h, w, 3) temporaries)."""
+    p = np.moveaxis(np.asarray(points), -1, 0)  # (3, h, w)
+    dx = np.gradient(p, axis=2)
+    dy = np.gradient(p, axis=1)
+    nx = dx[1] * dy[2] - dx[2] * dy[1]
+    ny = dx[2] * dy[0] - dx[0] * dy[2]
+    nz = dx[0] * dy[1] - dx[1] * dy[0]
     with np.errstate(invalid="ignore", divide="ignore"):
-        n = n / np.linalg.norm(n, axis=-1, keepdims=True)
-        ray = points / np.linalg.norm(points, axis=-1, keepdims=True)
-        return np.abs(np.sum(n * ray, axis=-1))  # type: ignore[no-any-return]
+        dot = nx * p[0] + ny * p[1] + nz * p[2]
+        norms = (nx * nx + ny * ny + nz * nz) * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+        return np.abs(dot) / np.sqrt(norms)  # type: ignore[no-any-return]
 
 
 def occluded(disparity: FloatArray, valid: NDArray[np.bool_]) -> NDArray[np.bool_]:

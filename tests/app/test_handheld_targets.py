@@ -36,7 +36,9 @@ def _session(tmp: str, surface: str, hand: HandMotion) -> Path:
 
 
 def _handheld(path: Path, stabilise: bool) -> dict[str, Any]:
-    out: dict[str, Any] = replay_session(path, None, ReplayOptions(stabilise=stabilise))["handheld"]
+    # the hand-held measures only: no distortion scores (not read here)
+    options = ReplayOptions(stabilise=stabilise, distortion=False)
+    out: dict[str, Any] = replay_session(path, None, options)["handheld"]
     return out
 
 

@@ -16,12 +16,20 @@ from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.mesh_surface import MeshSurface
 from adaproj_edge.hal.camera import CameraFrame
 from adaproj_edge.session import schemas
-from adaproj_edge.session.calibration_sim import STOPS, StopPath
+from adaproj_edge.session.calibration_sim import (
+    STOPS,
+    CalibrationSimSettings,
+    SimUser,
+    StopPath,
+    sim_rig,
+)
 from adaproj_edge.session.codec import decode, encode, topic_of
 from adaproj_edge.session.reader import read_session
 from adaproj_edge.session.records import PatternShown
 from adaproj_edge.session.scene_render import CameraOptics, lit_view, render_capture
 from adaproj_edge.session.simulator import (
+    T0_NS,
+    ImuNoise,
     Scene,
     SimulationSettings,
     scoring_projector,
@@ -137,3 +145,57 @@ def test_a_session_on_a_true_rig_records_the_nominal_one(tmp_path: Path) -> None
     assert rig is not None and np.array_equal(rig.projector.K, K)
     assert scoring_projector(s.attachments, nominal.projector).K[1, 2] == K[1, 2]
     assert scoring_projector({}, nominal.projector) is nominal.projector
+
+
+def test_imu_samples_made_ahead_show_a_move_told_after_they_were_made() -> None:
+    """The simulated IMU makes its samples ahead of the clock and hands each out when
+    it is due; a move the user hears afterwards (it starts ``REACTION_S`` later) still
+    shows in them: every sample agrees with the truth of the whole path, computed once
+    the path is complete. Without noise or biases the only difference is the chip's
+    quantisation: half a step of each sensor, and rounding."""
+    quiet = ImuNoise(0.0, 0.0, 0.0, 0.0)
+    sim = sim_rig(
+        Scene.load("corner"), Calibration.default(), CalibrationSimSettings(imu_noise=quiet)
+    )
+    w, clock = sim.world, sim.world.clock
+    user = SimUser(w, lambda rec: None)
+    got = []
+    for step in range(1750):  # 3.5 s, polled every 2 ms as the procedure does
+        if step in (275, 1030):  # told to move at 0.55 s and 2.06 s
+            user.say("move", "")
+        while (s := sim.imu.read()) is not None:
+            assert s.receive_ns <= clock.now_ns()
+            got.append(s)
+        clock.sleep_until(clock.now_ns() + 2_000_000)
+    t = np.array([s.sensor_ns for s in got])
+    assert np.all(np.diff(t) == sim.imu.dt_ns) and t[-1] > T0_NS + 3.4e9
+    f_p, w_p = w.path.imu_truth((t - T0_NS) * 1e-9)
+    R_I_P = w.rig.R_P_I.T
+    acc, gyr = np.array([s.accel for s in got]), np.array([s.gyro for s in got])
+    assert np.abs(gyr).max() > 0.1  # the moves show
+    imu = w.settings.imu
+    assert np.abs(acc - f_p @ R_I_P.T).max() <= imu.accel_scale / 2 + 1e-9
+    assert np.abs(gyr - w_p @ R_I_P.T).max() <= imu.gyro_scale / 2 + 1e-9
+
+
+def test_the_light_on_a_turned_wall_is_lambert_s() -> None:
+    """A wall turned 30 degrees, 2 m ahead, albedo 1: each camera point lit by projector
+    pixel (u, v) gets cos(incidence) x (1.5 m / distance)^2, the point computed here
+    from (u, v) and the wall's equation. ``uv`` and ``light`` are float32 (relative
+    rounding 6e-8, the point's ~1e-7 over the wall's ~1000 px), so 1e-5 is far above."""
+    c, s = np.cos(np.radians(30.0)), np.sin(np.radians(30.0))
+    v = np.array([[x * c, y, 2.0 + x * s] for x, y in ((-3, -2), (3, -2), (3, 2), (-3, 2))])
+    scene = Scene(MeshSurface("wall", v, np.array([[0, 1, 2], [0, 2, 3]])), {"kind": "mesh"})
+    rig = Calibration.default()
+    optics = CameraOptics(albedo_texture=0.0, supersample=2)
+    view = lit_view(scene, rig, np.eye(3), np.zeros(3), rig.depth.intrinsics_at(160, 100),
+                    (160, 100), optics)  # fmt: skip
+    lit = view.uv[..., 0] > -5
+    assert lit.mean() > 0.15  # the projector lights a quarter of the camera's view
+    uv = view.uv[lit].astype(np.float64)
+    rays = np.c_[uv, np.ones(len(uv))] @ np.linalg.inv(rig.projector.K).T
+    n = np.array([s, 0.0, -c])
+    points = rays * ((n @ [0.0, 0.0, 2.0]) / (rays @ n))[:, None]
+    dist = np.linalg.norm(points, axis=1)
+    truth = np.abs(points @ n) / dist * (optics.reference_m / dist) ** 2
+    assert np.abs(view.light[lit] / truth - 1).max() < 1e-5

@@ -13,7 +13,7 @@ from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.depth.sensor import SensorModel
 from adaproj_edge.session.clutter import CLUTTER
 from adaproj_edge.session.simulator import Scene
-from adaproj_edge.session.stereo import StereoNoise, stereo_depth
+from adaproj_edge.session.stereo import StereoNoise, normals_cos, stereo_depth
 
 CAL = Calibration.default()
 D = CAL.depth
@@ -118,3 +118,20 @@ def test_cluttered_scenes_show_several_depths(name: str) -> None:
     # something stands in front of the wall: a jump of more than 25 cm between neighbours
     jumps = np.abs(np.diff(z, axis=1))
     assert np.nanmax(jumps) > 0.25
+
+
+def test_normals_cos_on_a_plane_is_the_angle_of_its_normal() -> None:
+    """On a plane every difference of two points lies in the plane, so the cross product
+    of the point map's gradients is the plane's normal n to rounding, and the |cos|
+    is |n . p| / |p|: the points are ~2 m apart by ~5 mm, so the gradients carry a
+    relative rounding of ~1e-13 and 1e-9 is far above it. NaN points have no cos,
+    nor do their neighbours along a row or a column (the central differences')."""
+    pts = tilted_wall(2.0, 35.0)
+    pts[100:110, 200:300] = np.nan
+    cos = normals_cos(pts)
+    n = np.array([np.sin(np.radians(35.0)), 0.0, -np.cos(np.radians(35.0))])
+    truth = np.abs(pts @ n) / np.linalg.norm(pts, axis=-1)
+    ok = np.isfinite(truth)
+    cross = ndimage.generate_binary_structure(2, 1)
+    assert np.array_equal(np.isfinite(cos), ndimage.binary_erosion(ok, cross, border_value=1))
+    assert np.abs(cos - truth)[np.isfinite(cos)].max() < 1e-9
