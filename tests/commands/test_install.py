@@ -8,18 +8,24 @@ it does (issue 12, item 9).
 - ``tools/adaproj`` on a fresh machine creates the environment with a line per stage,
   pip's own progress and the time it took, and no setuptools warnings.
 
-Both install real packages (from pip's cache when it has them), so both are slow.
+Both install real packages (from pip's cache when it has them). The wheel's venv takes the
+distributions of its resolution that this environment holds as hard links (see
+``installed``), so it costs seconds rather than minutes.
 """
 
 from __future__ import annotations
 
+import importlib.metadata
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
 import zipfile
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -52,8 +58,19 @@ def check(proc: subprocess.CompletedProcess[str]) -> str:
 
 
 @pytest.fixture(scope="module")
-def installed(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A fresh venv, outside the checkout, holding the wheel with the device extra."""
+def installed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """A fresh venv, outside the checkout, holding the wheel with the device extra.
+
+    pip resolves the wheel's declared requirements (with the ``device`` extra) against the
+    package index for the empty venv; the distributions of that resolution which this
+    environment already holds at the same version are hard-linked in (their files as
+    their RECORD lists them: the same files pip would unpack from the same wheels, without
+    writing ~1 GB again); pip then installs the wheel and whatever else the resolution
+    needs, and finds the linked ones satisfied. The venv holds exactly what the
+    resolution names and nothing of this environment besides, so an undeclared
+    requirement still fails. Removed at the end of the module (pytest keeps the last
+    three base temporaries, which made its own clean-up slow).
+    """
     tmp = tmp_path_factory.mktemp("wheel")
     src = tmp / "src"  # build from a copy: the build leaves build/ and egg-info behind
     shutil.copytree(REPO, src, symlinks=True, ignore=SKIP_IN_COPY)
@@ -65,11 +82,66 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Path:
     wheels = list(dist.glob("adaproj_edge-*.whl"))
     assert len(wheels) == 1
     venv = tmp / "venv"
-    check(run([sys.executable, "-m", "venv", venv], tmp))
-    py = venv / "bin" / "python"
-    pip = [py, "-m", "pip", "install", "--no-compile", "--disable-pip-version-check"]
-    check(run([*pip, f"{wheels[0]}[device]"], tmp))
-    return venv
+    check(run([sys.executable, "-m", "venv", "--without-pip", venv], tmp))
+    # the running pip, acting on the venv (which needs no pip of its own)
+    pip = [sys.executable, "-m", "pip", "--python", venv / "bin" / "python", "install"]
+    pip += ["--no-compile", "--disable-pip-version-check"]
+    wanted = f"{wheels[0]}[device]"
+    report = tmp / "resolution.json"
+    check(run([*pip, "--dry-run", "--report", report, wanted], tmp))
+    resolved = json.loads(report.read_text())["install"]
+    site = next(venv.glob("lib/python*/site-packages"))
+    link_distributions(resolved, site)
+    check(run([*pip, wanted], tmp))
+    held = {canonical(d.name.split("-")[0]) for d in site.glob("*.dist-info")}
+    assert held == {canonical(item["metadata"]["name"]) for item in resolved}
+    yield venv
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+def link_distributions(resolved: list[dict[str, Any]], site: Path) -> list[str]:
+    """Hard-link into ``site`` each resolved distribution this environment holds.
+
+    Parameters
+    ----------
+    resolved : list of dict
+        The ``install`` entries of a pip installation report.
+    site : Path
+        The target venv's site-packages.
+
+    Returns
+    -------
+    list of str
+        The names of the distributions linked: those held here at the resolved version
+        (not adaproj-edge itself), each with every file its RECORD lists under
+        site-packages (console scripts, outside it, are not needed by the tests).
+    """
+    linked = []
+    for item in resolved:
+        name, version = item["metadata"]["name"], item["metadata"]["version"]
+        if canonical(name) == "adaproj-edge":
+            continue
+        try:
+            held = importlib.metadata.distribution(name)
+        except importlib.metadata.PackageNotFoundError:
+            continue
+        if held.version != version or not held.files:
+            continue
+        root = Path(str(held.locate_file(""))).resolve()
+        for rel in held.files:
+            src = Path(str(held.locate_file(rel))).resolve()
+            if root not in src.parents or not src.is_file():
+                continue  # a script in bin/, or a file RECORD lists that is not there
+            dst = site / src.relative_to(root)
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            os.link(src, dst)
+        linked.append(name)
+    return linked
+
+
+def canonical(name: str) -> str:
+    """A distribution name as pip compares them (PEP 503)."""
+    return re.sub(r"[-_.]+", "-", name).lower()
 
 
 def check_build(proc: subprocess.CompletedProcess[str]) -> str:
