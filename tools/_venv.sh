@@ -29,15 +29,15 @@ if [ ! -x "$venv/bin/python" ] || ! { have "$extras" || have dev; }; then
   fi
   echo "adaproj: [2/3] updating pip" >&2
   "$venv/bin/python" -m pip install --upgrade --progress-bar on pip >&2
+  # no byte-compiling of every installed file (thousands): Python compiles what it imports
   if [ "$extras" = dev ]; then
     echo "adaproj: [3/3] installing adaproj-edge with every extra and the test tools" \
       "(numpy, scipy, OpenCV, onnxruntime, DepthAI, NVIDIA Warp, pytest, ruff, mypy)" >&2
-    # no byte-compiling of every installed file (~7000): Python compiles what it imports
     "$venv/bin/python" -m pip install --no-compile --progress-bar on -e "$repo[dev]" >&2
   else
     echo "adaproj: [3/3] installing adaproj-edge and what it needs to run" \
       "(numpy, scipy, OpenCV, onnxruntime)" >&2
-    "$venv/bin/python" -m pip install --progress-bar on -e "$repo" >&2
+    "$venv/bin/python" -m pip install --no-compile --progress-bar on -e "$repo" >&2
   fi
   echo "$want" > "$(stamp_for "$extras")"
   echo "adaproj: $venv ready in $((SECONDS - started)) s" >&2

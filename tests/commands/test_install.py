@@ -230,9 +230,17 @@ def test_run_start_up_checks(installed: Path, work: Path) -> None:
     assert "check that" in err[-1]  # says what to check (the framebuffer, a device)
 
 
+@pytest.fixture
+def fresh_venv(tmp_path: Path) -> Iterator[Path]:
+    """Where ``tools/adaproj`` is to create its environment; removed after the test
+    (pytest keeps the last three base temporaries)."""
+    yield tmp_path / "venv"
+    shutil.rmtree(tmp_path / "venv", ignore_errors=True)
+
+
 @pytest.mark.slow
-def test_first_run_shows_its_progress(tmp_path: Path) -> None:
-    venv = tmp_path / "venv"
+def test_first_run_shows_its_progress(tmp_path: Path, fresh_venv: Path) -> None:
+    venv = fresh_venv
     proc = run([REPO / "tools" / "adaproj", "--help"], tmp_path, ADAPROJ_VENV=str(venv))
     out = check(proc)
     assert "usage: adaproj" in out
