@@ -64,10 +64,10 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     pip resolves the wheel's declared requirements (with the ``device`` extra) against the
     package index for the empty venv; the distributions of that resolution which this
     environment already holds at the same version are hard-linked in (their files as
-    their RECORD lists them: the same files pip would unpack from the same wheels, without
-    writing ~1 GB again); pip then installs the wheel and whatever else the resolution
-    needs, and finds the linked ones satisfied. The venv holds exactly what the
-    resolution names and nothing of this environment besides, so an undeclared
+    their RECORD lists them: the same files pip would unpack from the same wheels,
+    without writing hundreds of MB again); pip then installs the wheel and whatever else
+    the resolution needs, and finds the linked ones satisfied. The venv holds exactly
+    what the resolution names and nothing of this environment besides, so an undeclared
     requirement still fails. Removed at the end of the module (pytest keeps the last
     three base temporaries, which made its own clean-up slow).
     """
@@ -134,7 +134,10 @@ def link_distributions(resolved: list[dict[str, Any]], site: Path) -> list[str]:
                 continue  # a script in bin/, or a file RECORD lists that is not there
             dst = site / src.relative_to(root)
             dst.parent.mkdir(parents=True, exist_ok=True)
-            os.link(src, dst)
+            try:
+                os.link(src, dst)
+            except OSError:  # another file system (or no hard links there): a copy
+                shutil.copy2(src, dst)
         linked.append(name)
     return linked
 
