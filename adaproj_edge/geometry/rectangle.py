@@ -253,9 +253,8 @@ def inscribed_rectangle(
     weights : (T,) float array, optional
         What each triangle is worth to a viewer (its area in the projector's frame: the
         lit pixels it holds). The centring then keeps at least :data:`SHOWN` of the
-        weight the largest rectangle covers (a rectangle covers the triangles whose
-        centroid it holds), taking a less centred rectangle when it would not (see the
-        module's description).
+        weight the largest rectangle covers (:meth:`_Triangles.covered`), taking a less
+        centred rectangle when it would not (see the module's description).
     """
     if tris.size == 0:
         raise WarpError("no surface triangles to place the content on")
