@@ -471,6 +471,7 @@ class _Triangles:
         self.x, self.y = np.take(vt[0], corners), np.take(vt[1], corners)  # (3, T)
         turn = [1, 2, 0]
         self.ex, self.ey = self.x[turn] - self.x, self.y[turn] - self.y  # sides
+        self.points: tuple[FloatArray, FloatArray] | None = None  # (:meth:`covered`)
 
     def inside(self, c: FloatArray) -> bool:
         """Whether point ``c`` (2,) lies in one of the triangles."""
@@ -484,14 +485,14 @@ class _Triangles:
         at ``c`` (2,): each triangle's weight in thirds at its three interior points
         (barycentric 2/3, 1/6, 1/6), a count that moves in smaller steps than whole
         triangles do as the square slides over a coarse mesh."""
+        if self.points is None:  # the point nearest corner k: (4 corner_k + the others) / 6
+            sx, sy = self.x.sum(axis=0), self.y.sum(axis=0)
+            self.points = (3.0 * self.x + sx) / 6.0, (3.0 * self.y + sy) / 6.0  # (3, T)
+        x, y = self.points
+        held = np.abs(x - c[0]) <= r
+        held &= np.abs(y - c[1]) <= r
         w = np.where(np.isfinite(weights), weights, 0.0)
-        total = 0.0
-        for k in range(3):  # the point nearest corner k: (4 corner_k + the others) / 6
-            x = (3.0 * self.x[k] + self.x[0] + self.x[1] + self.x[2]) / 6.0
-            y = (3.0 * self.y[k] + self.y[0] + self.y[1] + self.y[2]) / 6.0
-            held = (np.abs(x - c[0]) <= r) & (np.abs(y - c[1]) <= r)
-            total += float(w @ held)
-        return total / 3.0
+        return float(np.sum(held @ w)) / 3.0
 
     def centroid(self) -> FloatArray:
         """Area centroid (2,) of the union of the triangles."""
