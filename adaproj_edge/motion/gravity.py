@@ -30,7 +30,8 @@ rotation. The estimate is built in three steps:
    bounded by ``max_drift``.
 3. **Trusted where the device is not being moved.** Samples are weighted down as
    their magnitude departs from gravity (``1 / (1 + (d / shake))^2``: a knock, a
-   swing the lever does not explain), and not used while the device turns on purpose
+   swing the lever does not explain; beyond ``max_departure`` not used at all: a
+   reading clipped at full scale), and not used while the device turns on purpose
    (the gyro rate low-passed by ``rate_tau_s``, over ``max_rate``, and ``hold_s``
    after) or while the caller says it moves (``still=False``): a deliberate move
    accelerates the device slowly, which no low-pass takes out. The rate's low-pass
@@ -76,6 +77,10 @@ class GravitySettings:
     shake : float
         Magnitude departure from gravity (after the lever is taken out) at which a
         sample's weight is a quarter.
+    max_departure : float
+        Magnitude departure beyond which a sample is not used at all (m/s^2): what the
+        lever does not explain by that much is a reading clipped at the accelerometer's
+        full scale (a 0.5-degree tremor swings the device by up to 4 g) or a knock.
     max_rate : float
         Deliberate turning rate (low-passed) over which the accelerometer is not used.
     rate_tau_s : float
@@ -101,6 +106,7 @@ class GravitySettings:
     drift_prior: float = 0.05
     max_drift: float = 0.05
     shake: float = 3.0
+    max_departure: float = 3.0
     max_rate: float = 0.04
     rate_tau_s: float = 0.15
     hold_s: float = 0.3
@@ -267,7 +273,9 @@ class GravityFilter:
         if self._quiet_s < s.hold_s:
             return
         dev = abs(float(np.linalg.norm(f)) - STANDARD_GRAVITY) / s.shake
-        weight = dt_prev / (1.0 + dev) ** 2
+        # beyond max_departure, not gravity and a swing (a reading clipped at full
+        # scale, a knock): not used
+        weight = 0.0 if dev * s.shake > s.max_departure else dt_prev / (1.0 + dev) ** 2
         # R_G_P one sample ago: this sample's rotation undone
         x = (self._R @ small_rotation(-w * dt)) @ f
         self._block[:3] += weight * x
