@@ -23,16 +23,6 @@ in the middle of the lit surface. On a flat wall nothing is lost (the largest sl
 freely); on a wall tilted 35 degrees the largest sits against the far edge and the
 centred one is 9 % narrower.
 
-That 10 % of the width is up to 19 % of the area, and the area centroid follows the
-region's area in the solved positions, not what a viewer sees: a floor seen grazing,
-whose flattened area dwarfs the rest, pulled a picture aimed at a half cylinder standing
-on it down, onto 0.78x the lit projector pixels the paper's warp (the largest
-rectangle) shows. Given what each triangle is worth (``weights``: its lit pixels), the centring
-therefore keeps at least :data:`SHOWN` of what the largest covers, trying smaller costs
-(:data:`_COSTS` of :data:`NEAR`) and else keeping the largest. Where the largest sits
-at a wall's far edge, the centred one covers more pixels, not fewer; centring a 4:3
-picture on the built-in flat wall costs 6 % of them; both are taken as before.
-
 Content turned upright in a rolled projector's frame meets a region whose sides are
 not axis-aligned: ``r`` then has a sharp ridge running obliquely along the sides the
 square touches, which the eight directions of the pattern cannot follow; the pattern
@@ -71,8 +61,6 @@ TOLERANCE = 4e-4  # the search stops at steps this small (of the region's extent
 NEAR = 0.1  # a rectangle this much narrower than the largest may be taken to be centred
 KEEP_SLACK = 0.05  # a kept centre may be narrower again by this much of the largest
 CLEARLY = 0.1  # an optimum elsewhere this much larger than the kept one's replaces it
-SHOWN = 0.93  # the centred rectangle covers at least this share of the largest's weight
-_COSTS = np.array([1.0, 0.75, 0.5, 0.25])  # the centring's costs tried, of NEAR, in turn
 _SHIFT = 4
 _DIRECTIONS = np.array(
     [[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=np.float64
@@ -220,7 +208,6 @@ def inscribed_rectangle(
     near: float = NEAR,
     loops: list[IntArray] | None = None,
     keep: FloatArray | None = None,
-    weights: FloatArray | None = None,
 ) -> Rect:
     """Largest rectangle of ``aspect`` (width / height) inside the union of triangles.
 
@@ -250,11 +237,6 @@ def inscribed_rectangle(
         The centre of the rectangle shown last (the same surface, estimated again): kept
         while it is nearly as large as the largest (see the module's description), so
         the placement is continuous in the region.
-    weights : (T,) float array, optional
-        What each triangle is worth to a viewer (its area in the projector's frame: the
-        lit pixels it holds). The centring then keeps at least :data:`SHOWN` of the
-        weight the largest rectangle covers (:meth:`_Triangles.covered`), taking a less
-        centred rectangle when it would not (see the module's description).
     """
     if tris.size == 0:
         raise WarpError("no surface triangles to place the content on")
@@ -290,14 +272,9 @@ def inscribed_rectangle(
             c, r = kept
             return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
     if near > 0:
-        goal = region.centroid()
-        least = 0.0 if weights is None else SHOWN * region.covered(c, r, weights)
-        for cost in near * _COSTS:
-            cc, rc = _centre(c, r, (1.0 - cost) * r, goal, tol, segs, pattern)
-            # (the clearance alone does not tell in from out)
-            if region.inside(cc) and (weights is None or region.covered(cc, rc, weights) >= least):
-                c, r = cc, rc
-                break
+        cc, rc = _centre(c, r, (1.0 - near) * r, region.centroid(), tol, segs, pattern)
+        if region.inside(cc):  # (the clearance alone does not tell in from out)
+            c, r = cc, rc
     return Rect(c[0] - r, (c[1] - r) / aspect, 2 * r, 2 * r / aspect)
 
 
@@ -471,7 +448,6 @@ class _Triangles:
         self.x, self.y = np.take(vt[0], corners), np.take(vt[1], corners)  # (3, T)
         turn = [1, 2, 0]
         self.ex, self.ey = self.x[turn] - self.x, self.y[turn] - self.y  # sides
-        self.points: tuple[FloatArray, FloatArray] | None = None  # (:meth:`covered`)
 
     def inside(self, c: FloatArray) -> bool:
         """Whether point ``c`` (2,) lies in one of the triangles."""
@@ -479,20 +455,6 @@ class _Triangles:
         s -= self.ey * (c[0] - self.x)
         left, right = s >= 0, s <= 0
         return bool(np.any((left[0] & left[1] & left[2]) | (right[0] & right[1] & right[2])))
-
-    def covered(self, c: FloatArray, r: float, weights: FloatArray) -> float:
-        """About the total of ``weights`` (T,) in the square of half-side ``r`` centred
-        at ``c`` (2,): each triangle's weight in thirds at its three interior points
-        (barycentric 2/3, 1/6, 1/6), a count that moves in smaller steps than whole
-        triangles do as the square slides over a coarse mesh."""
-        if self.points is None:  # the point nearest corner k: (4 corner_k + the others) / 6
-            sx, sy = self.x.sum(axis=0), self.y.sum(axis=0)
-            self.points = (3.0 * self.x + sx) / 6.0, (3.0 * self.y + sy) / 6.0  # (3, T)
-        x, y = self.points
-        held = np.abs(x - c[0]) <= r
-        held &= np.abs(y - c[1]) <= r
-        w = np.where(np.isfinite(weights), weights, 0.0)
-        return float(np.sum(held @ w)) / 3.0
 
     def centroid(self) -> FloatArray:
         """Area centroid (2,) of the union of the triangles."""

@@ -168,7 +168,7 @@ def _rectangle(
     loops = mesh.topology.remember("boundary loops", lambda: boundary_loops(mesh.boundary) or [])
     return inscribed_rectangle(
         vr, mesh.tris, aspect, boundary=mesh.boundary, start=start, near=NEAR, loops=loops,
-        keep=keep, weights=mesh.remember("pixel areas", lambda: mesh.pixel_areas),
+        keep=keep,
     )  # fmt: skip
 
 
