@@ -91,7 +91,6 @@ def main() -> None:
     from adaproj_edge.geometry.projector import Projector
     from adaproj_edge.render.photometry import (
         PhotometrySettings,
-        apply_gain,
         degrees_per_pixel,
         gain_map,
     )
@@ -134,14 +133,7 @@ def main() -> None:
         gm.pixels(3)
         made.append(time.process_time() - t)
     frame = np.full((projector.height, projector.width, 3), 128, np.uint8)
-    out = np.empty_like(frame)
-    apply_gain(frame, gm, out)
-    times = []
-    for _ in range(args.frames):
-        t = time.process_time()
-        apply_gain(frame, gm, out)
-        times.append(time.process_time() - t)
-    ms = np.array(times) * 1e3
+    ms = apply_ms(frame, gm, args.frames)
     print(
         f"cost: gain map per pose median {np.median(made) * 1e3:.0f} ms (corner, 5 runs); "
         f"per displayed frame median {np.median(ms):.3f} ms, p95 {np.percentile(ms, 95):.3f} ms "
@@ -152,6 +144,23 @@ def main() -> None:
 SURFACES = ("plane", "tilted", "corner", "cylinder-concave", "sphere-concave", "bowl")
 TEXTURES = ("bricks", "blotches", "stripes", "wallpaper")
 CONTENTS = ("poster", "text", "landscape", "bars", "screenshot")
+
+
+def apply_ms(frame: Any, gain: Any, frames: int) -> Any:
+    """CPU ms of each of ``frames`` applications of ``gain`` to ``frame`` (after one
+    untimed warm-up), as the display loop applies it."""
+    import numpy as np
+
+    from adaproj_edge.render.photometry import apply_gain
+
+    out = np.empty_like(frame)
+    apply_gain(frame, gain, out)
+    times = []
+    for _ in range(frames):
+        t = time.process_time()
+        apply_gain(frame, gain, out)
+        times.append(time.process_time() - t)
+    return np.array(times) * 1e3
 
 
 def texture(kind: str, shape: tuple[int, int], rng: Any) -> Any:
@@ -328,14 +337,7 @@ def colour_figures(args: argparse.Namespace) -> None:
     response = measure(caps["black"], caps["white"], [caps[c] for c in PRIMARIES])
     gain = colour_gain(response, plan(response, lift=False), (big.width, big.height))
     frame = content_image("poster", (big.width, big.height), rng)
-    out = np.empty_like(frame)
-    apply_gain(frame, gain, out)
-    times = []
-    for _ in range(args.frames):
-        t = time.process_time()
-        apply_gain(frame, gain, out)
-        times.append(time.process_time() - t)
-    ms = np.array(times) * 1e3
+    ms = apply_ms(frame, gain, args.frames)
     print(
         f"colour gain per displayed frame ({big.width}x{big.height} BGR, one core): median "
         f"{np.median(ms):.3f} ms, p95 {np.percentile(ms, 95):.3f} ms ({args.frames} frames)"
