@@ -7,7 +7,8 @@ OpenCV wheels decode H.264 but cannot encode it) from ``tests/content/clips.py``
 moving right across 60 % of the width; ``subject``, an orange ellipse moving across
 blurred noise), and plays it onto a surface (default: the concave sphere) at the
 device's grid, one thread, with the device's content maps (saliency every 4th frame,
-faces detected every 6th and followed between, the two never on one frame after the
+a face detection every 6th or so spread over five frames, one band of scales each, the
+faces followed on every frame; the model and a band never on one frame after the
 first), three ways, in the same run:
 
 - **content-aware** (ours, as the device and ``adaproj video`` play it:

@@ -30,6 +30,9 @@ DEFAULT_LONG_SIDE = 480
 NO_FACES: FloatArray = np.zeros((0, 4), np.float64)
 """An empty (0, 4) box array."""
 
+ScaleBand = tuple[tuple[int, int], tuple[int, int]]
+"""The smallest and largest window ``(w, h)`` of a band of the cascade's scales."""
+
 FACE_SCALE = (0.62, 0.8)
 """Semi-axes of a face's ellipse in box widths and heights (the box is eyes-to-mouth)."""
 FACE_DROP = 0.1
@@ -131,6 +134,89 @@ class FaceDetector:
         )
         boxes = np.asarray(found, np.float64).reshape(-1, 4)
         return boxes[np.argsort(-boxes[:, 2] * boxes[:, 3], kind="stable")]
+
+    def scale_bands(self, scan_shape: tuple[int, ...], n: int) -> list[ScaleBand]:
+        """The scales :meth:`detect_scanned` scans, split into at most ``n`` bands of about
+        equal work, smallest faces first.
+
+        The cascade scans window sizes ``cvRound(w0 * s**k)`` (``s`` the scale factor,
+        ``w0`` the cascade's window) from :attr:`min_size` up to the image's size; a
+        scale's work is the number of windows it tries (every other pixel below scale 2,
+        every pixel above, as OpenCV steps). Scanning the bands one at a time
+        (:meth:`detect_band`) and grouping their candidates together (:meth:`group`) gives
+        the boxes of :meth:`detect_scanned`.
+
+        Parameters
+        ----------
+        scan_shape : (h_s, w_s, ...)
+            Shape of the scan image (:meth:`scan_image`).
+        n : int
+            Bands wanted (>= 1).
+
+        Returns
+        -------
+        list of ScaleBand
+            ``(smallest, largest)`` window ``(w, h)`` of each band; empty when the image
+            is smaller than the smallest face.
+        """
+        h, w = scan_shape[:2]
+        w0, h0 = self._cascade.getOriginalWindowSize()
+        windows: list[tuple[int, int]] = []
+        work: list[float] = []
+        factor = 1.0
+        while True:  # OpenCV's loop over scales (CascadeClassifierImpl::detectMultiScale)
+            ww, wh = int(np.rint(w0 * factor)), int(np.rint(h0 * factor))
+            if ww > w or wh > h:
+                break
+            if ww >= self.min_size and wh >= self.min_size:
+                step = 1 if factor > 2.0 else 2
+                windows.append((ww, wh))
+                tries = ((w / factor - w0) // step + 1) * ((h / factor - h0) // step + 1)
+                work.append(max(1.0, tries))
+            factor *= self.scale_factor
+        if not windows:
+            return []
+        share = np.cumsum(work) / np.sum(work)  # the work done once each scale is scanned
+        ends = sorted({int(np.searchsorted(share, (i + 1) / n - 1e-9)) for i in range(n)})
+        starts = [0, *(e + 1 for e in ends[:-1])]
+        return [(windows[a], windows[b]) for a, b in zip(starts, ends, strict=True)]
+
+    def detect_band(self, gray: Image, band: ScaleBand) -> FloatArray:
+        """The cascade's raw candidates (ungrouped) at the scales of one band.
+
+        Parameters
+        ----------
+        gray : (h_s, w_s) uint8
+            The scan image (:meth:`scan_image`).
+        band : ScaleBand
+            From :meth:`scale_bands` for this image's shape.
+
+        Returns
+        -------
+        (n, 4) float64
+            ``x, y, w, h`` of every window the cascade accepts, scanned pixels.
+        """
+        found = self._cascade.detectMultiScale(
+            gray, scaleFactor=self.scale_factor, minNeighbors=0, minSize=band[0], maxSize=band[1]
+        )
+        return np.asarray(found, np.float64).reshape(-1, 4)
+
+    def group(self, candidates: FloatArray) -> FloatArray:
+        """Raw candidates of every band of one scan image -> its face boxes.
+
+        OpenCV's own grouping (``groupRectangles``, ``min_neighbours``, eps 0.2, as
+        ``detectMultiScale`` groups): the boxes :meth:`detect_scanned` gives.
+
+        Returns
+        -------
+        (n, 4) float64
+            ``x, y, w, h`` of each face, scanned pixels, largest first.
+        """
+        raw = np.asarray(candidates, np.float64).reshape(-1, 4)
+        if self.min_neighbours > 0 and len(raw):
+            found, _ = cv2.groupRectangles(raw.astype(np.int32).tolist(), self.min_neighbours, 0.2)
+            raw = np.asarray(found, np.float64).reshape(-1, 4)
+        return raw[np.argsort(-raw[:, 2] * raw[:, 3], kind="stable")]
 
     def detect(self, image_bgr: Image) -> FloatArray:
         """Face boxes in content pixels.

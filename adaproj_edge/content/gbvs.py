@@ -185,6 +185,21 @@ def _falloff_1d(size: int, sigma: float, reflect: float) -> NDArray[np.float64]:
     return f
 
 
+def falloff_factors(
+    map_size: tuple[int, int], sigma_frac: float, reflect: float = 0.0
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The two factors of :func:`falloff`: ``(rows, rows)`` and ``(cols, cols)``, symmetric.
+
+    The Gaussian of the grid distance is the product of a Gaussian along the rows and
+    one along the columns, so ``falloff = kron(f_rows, f_cols)``, and for maps ``A``
+    ``(m, rows, cols)``, ``A.reshape(m, -1) @ falloff`` is ``f_rows @ A @ f_cols``
+    reshaped (what the ONNX graph computes: ~25x fewer multiplications at 24x15).
+    """
+    rows, cols = map_size
+    sigma = sigma_frac * (rows + cols) / 2.0
+    return _falloff_1d(rows, sigma, reflect), _falloff_1d(cols, sigma, reflect)
+
+
 def falloff(map_size: tuple[int, int], sigma_frac: float, reflect: float = 0.0) -> F32:
     """Gaussian of the grid distance between nodes, shape ``(n, n)``, symmetric.
 
@@ -193,9 +208,7 @@ def falloff(map_size: tuple[int, int], sigma_frac: float, reflect: float = 0.0) 
     borders: 0 is the authors' open graph (border nodes have fewer neighbours, which
     makes a centre bias), 1 a fully reflecting border (no place favoured).
     """
-    rows, cols = map_size
-    sigma = sigma_frac * (rows + cols) / 2.0
-    f = np.kron(_falloff_1d(rows, sigma, reflect), _falloff_1d(cols, sigma, reflect))
+    f = np.kron(*falloff_factors(map_size, sigma_frac, reflect))
     return np.asarray(f, dtype=np.float32)
 
 

@@ -1,16 +1,17 @@
 """The content map of a clip, coherent in time.
 
-Running the saliency model on every frame costs ~8 ms of a 33 ms frame, and a map that
-jumps from frame to frame would make the content-aware warp flicker. The
-:class:`TemporalContentMap` therefore
+Running the saliency model on every frame costs ~5 ms of a 33 ms frame (CPU time on the
+development machine), and a map that jumps from frame to frame would make the
+content-aware warp flicker. The :class:`TemporalContentMap` therefore
 
 - runs the saliency model every ``saliency_every`` frames (the target in between is
   the last one computed),
 - follows the faces on every frame with a :class:`~adaproj_edge.content.facetrack.FaceTracker`
-  (detection every few frames, tracking in between), the two detectors taking turns:
-  a face detection due on a frame the saliency model runs on is put off to the next
-  frame, so after the first frame no frame pays for both (saliency ~8 ms and a face
-  detection ~20 ms at 1280x720 on one core together made frames late),
+  (a detection every few frames, spread over several frames one band of scales at a
+  time, tracking in between), the two detectors taking turns: the detector's work due
+  on a frame the saliency model runs on is put off to the next frame, so after the
+  first frame no frame does more than one of them (a whole face detection, ~32 ms at
+  1280x720 on one core, with the model made frames late; a band is ~6.5 ms),
 - smooths the saliency exponentially in time: each frame moves it a fraction
   ``alpha`` of the way to its target, so a subject that moves drags the map smoothly
   behind it and a still scene gives a map that does not change at all,
@@ -152,9 +153,9 @@ class TemporalContentMap:
             self._saliency = resize_map(self.model.predict(frame_bgr), self.size, area=False)
         boxes = NO_FACES.copy()
         if self.tracker is not None:
-            # the detectors take turns: a face detection due on a saliency frame runs on
-            # the next frame (the first frame, which needs both, and a model run on
-            # every frame excepted)
+            # the detectors take turns: the face detector's work due on a saliency frame
+            # runs on the next frame (the first frame, which needs both, and a model run
+            # on every frame excepted)
             first = self._smooth is None
             detect = self.tracker.due and (not salient or first or every == 1)
             boxes = self.tracker.update(frame_bgr, detect)

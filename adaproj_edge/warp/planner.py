@@ -220,7 +220,9 @@ class _Solution:
 
 
 def _surface_depth(surface: Surface) -> FloatArray:
-    return surface.points[..., 2].astype(np.float64)
+    depth = surface.points[..., 2].astype(np.float64)
+    depth.setflags(write=False)  # kept by the planner and its warps, never changed
+    return depth
 
 
 def _may_rule(start: ContentFreeWarp, rows: IntArray, cols: IntArray) -> NDArray[np.bool_] | None:
@@ -273,7 +275,17 @@ class WarpPlanner:
         self.coarse_grid = Grid(cols=self.cols.size - 1, rows=self.rows.size - 1)
         self._last: _Solution | None = None
         self._anchor: tuple[FloatArray, FloatArray] | None = None  # depth, centre's uv
+        self._depth: tuple[NDArray[np.float32], FloatArray] | None = None  # points, depth
         self.smoother = WarpSmoother(p.temporal)
+
+    def _depth_of(self, surface: Surface) -> FloatArray:
+        """The lattice depth of ``surface`` (float64, read-only), kept for the last
+        surface's points: a clip asks for the same surface's on every frame, twice, and
+        each copy at 1280x800 costs ~1.5 ms of a 33 ms frame."""
+        kept = self._depth
+        if kept is None or kept[0] is not surface.points:
+            kept = self._depth = (surface.points, _surface_depth(surface))
+        return kept[1]
 
     def forget(self) -> None:
         """Drop the solution kept for warm starts, the last placement's anchor and the
@@ -315,7 +327,7 @@ class WarpPlanner:
         q, g = warp.image_xy.reshape(-1, 2)[tris], warp.grid_uv.reshape(-1, 2)[tris]
         uv = carry_through_triangles(q, g, centre)[0]
         if np.all(np.isfinite(uv)):
-            self._anchor = (_surface_depth(surface), uv)
+            self._anchor = (self._depth_of(surface), uv)
         return warp
 
     # ------------------------------------------------------------------ steps
@@ -417,7 +429,7 @@ class WarpPlanner:
         """The content-free warp of ``mesh`` (of the surface ``shown``) with positions
         ``v`` (conformal ``v_conf``), made for the ``measured`` surface (the pose cache
         matches it), ended at ``step`` of the chain after ``down``."""
-        depth = _surface_depth(measured)
+        depth = self._depth_of(measured)
         placement = self._anchored(mesh, v, content_size, settings.up, depth)
         warp = make_warp(mesh, v, placement, shown, content_size, settings, 0, 0.0)
         warp.meta.update(extra)
@@ -501,7 +513,7 @@ class WarpPlanner:
                 surface, grid, self.cache, coarse_uv, _may_rule(start, rows, cols)
             )
             start.refinement_meshes[str(grid)] = mesh
-        depth = _surface_depth(surface)
+        depth = self._depth_of(surface)
         if frame_dt is None:
             return self._refine(mesh, depth, content_map, settings, start, on_step, surface=surface)
         graded = GradedContentMap.of(content_map, self.plan_settings.temporal.band)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import cv2
@@ -21,6 +22,7 @@ from adaproj_edge.content.contentmap import (
     resize_map,
 )
 from adaproj_edge.content.faces import FaceDetector, face_map
+from adaproj_edge.content.facetrack import DEFAULT_SLICES
 from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.content.overlay import FACE_COLOUR, overlay
 from adaproj_edge.errors import ModelError
@@ -146,7 +148,31 @@ def test_bad_cascade_files_are_model_errors(tmp_path: Path) -> None:
         FaceDetector(tmp_path / "bad.xml")
 
 
+def test_a_detection_in_bands_of_scales_finds_what_a_whole_one_finds(
+    detector: FaceDetector,
+) -> None:
+    # what lets a clip spread a detection over frames (content/facetrack.py): the bands'
+    # candidates grouped together are the boxes of one whole scan. Both are integer
+    # windows of the same cascade at the same scales, so they are compared exactly.
+    n = DEFAULT_SLICES
+    scenes = [astronaut(), *face_scenes(3)[1:], *non_face_scenes(1)]
+    found = 0
+    for scene in scenes:
+        gray, _ = detector.scan_image(scene.image)
+        bands = detector.scale_bands(gray.shape, n)
+        (whole_band,) = detector.scale_bands(gray.shape, 1)
+        assert 2 <= len(bands) <= n
+        assert bands[0][0] == whole_band[0] == (24, 24) and bands[-1][1] == whole_band[1]
+        assert all(a[1][0] < b[0][0] for a, b in itertools.pairwise(bands))
+        candidates = np.concatenate([detector.detect_band(gray, b) for b in bands])
+        whole = detector.detect_scanned(gray)
+        assert sorted(map(tuple, detector.group(candidates))) == sorted(map(tuple, whole))
+        found += len(whole)
+    assert found >= 3  # the comparison is not only of empty lists
+
+
 def test_tiny_images_have_no_faces(detector: FaceDetector) -> None:
     assert detector.detect(np.zeros((10, 16, 3), np.uint8)).shape == (0, 4)
+    assert detector.scale_bands((10, 16), 5) == []
     gray = cv2.cvtColor(astronaut().image, cv2.COLOR_BGR2GRAY)
     assert len(detector.detect(gray)) == 1

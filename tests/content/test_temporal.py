@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from adaproj_edge.arrays import Image
-from adaproj_edge.content.faces import FaceDetector
+from adaproj_edge.content.faces import FaceDetector, ScaleBand
 from adaproj_edge.content.facetrack import FaceTracker
 from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.content.temporal import TemporalContentMap, TemporalSettings
@@ -34,27 +34,47 @@ def face_clip(n: int) -> list[tuple[Image, tuple[int, int]]]:
 
 
 class CountingDetector(FaceDetector):
-    """The shipped detector, counting how often it scans."""
+    """The shipped detector, counting the bands of scales it scans."""
 
     scans = 0
 
-    def detect_scanned(self, gray: Image) -> np.ndarray:
+    def detect_band(self, gray: Image, band: ScaleBand) -> np.ndarray:
         self.scans += 1
-        return super().detect_scanned(gray)
+        return super().detect_band(gray, band)
 
 
-def test_tracker_detects_every_n_frames_and_follows_in_between() -> None:
+def test_tracker_detects_every_n_frames_one_band_a_frame_and_follows_in_between() -> None:
     det = CountingDetector(long_side=320)
-    tracker = FaceTracker(det, every=5)
+    tracker = FaceTracker(det, every=5, slices=3)
     clip = face_clip(24)
-    boxes = [tracker.update(f) for f, _ in clip]
-    assert det.scans == 5 and tracker.detections == 5  # frames 0, 5, 10, 15, 20
+    boxes, bands = [], []
+    for f, _ in clip:
+        scans = det.scans
+        boxes.append(tracker.update(f))
+        bands.append(det.scans - scans)
+    # the first frame scans every scale at once, then a detection starts on frames 5, 10,
+    # 15, 20 and takes three frames, one band of scales each
+    assert bands == [1, 0, 0, 0, 0] + [1, 1, 1, 0, 0] * 3 + [1, 1, 1, 0]
+    assert tracker.detections == 5 and tracker.bands_scanned == 1 + 3 * 4
     assert all(len(b) == 1 for b in boxes)
     first = boxes[0][0]
     for (_, (x, y)), b in zip(clip, boxes, strict=True):
         offset = b[0][:2] - first[:2] - np.array([x - clip[0][1][0], y - clip[0][1][1]])
         assert np.abs(offset).max() <= 3.0  # follows the head to a few pixels
         assert b[0][2] == pytest.approx(first[2], rel=0.2)
+
+
+def test_a_face_found_by_a_spread_detection_is_placed_where_it_is_now() -> None:
+    # a detection spread over frames 5-7 finds the face in frame 5; by frame 7 the face
+    # has moved 18 px: it is followed from frame 5 to frame 7, not shown where it was
+    det = FaceDetector(long_side=320)
+    tracker = FaceTracker(det, every=5, slices=3)
+    clip = face_clip(8)
+    empty = cv2.GaussianBlur(np.full((SIZE[1], SIZE[0], 3), 90, np.uint8), (0, 0), 2)
+    boxes = [tracker.update(empty if i < 3 else f) for i, (f, _) in enumerate(clip)]
+    assert [len(b) for b in boxes] == [0] * 7 + [1]
+    (now,) = det.detect(clip[7][0])  # a whole detection of frame 7: where the face is
+    assert np.abs(boxes[7][0][:2] - now[:2]).max() <= 3.0
 
 
 def test_tracker_drops_a_face_that_leaves() -> None:
@@ -133,28 +153,39 @@ class CountingModel:
         return np.asarray(image_bgr[..., 1], np.float32) / 255.0
 
 
-@pytest.mark.parametrize(("saliency_every", "faces_every"), [(4, 6), (4, 4), (3, 5), (2, 2)])
-def test_saliency_and_face_detection_take_turns(saliency_every: int, faces_every: int) -> None:
-    # before, frames 0, 12, 24, ... (saliency every 4th, faces every 6th) paid for both
+@pytest.mark.parametrize(
+    ("saliency_every", "faces_every", "slices"), [(4, 6, 5), (4, 4, 1), (3, 5, 3), (2, 2, 1)]
+)
+def test_saliency_and_face_detection_take_turns(
+    saliency_every: int, faces_every: int, slices: int
+) -> None:
+    # before, frames 0, 12, 24, ... (saliency every 4th, faces every 6th) paid for both,
+    # and a frame that detected faces paid for a whole detection (~32 ms at 1280x720)
     det, model = CountingDetector(long_side=320), CountingModel()
-    tracker = FaceTracker(det, every=faces_every)
+    tracker = FaceTracker(det, every=faces_every, slices=slices)
     settings = TemporalSettings(saliency_every=saliency_every)
     tmap = TemporalContentMap(SIZE, model, tracker=tracker, settings=settings)
-    both, detected, runs = [], [], []
+    detected, runs, due = [], [], []
     for f, (x, y) in face_clip(25):
         model.runs, scans = 0, det.scans
+        due.append(tracker.due)
         cmap = tmap.update(f)
         detected.append(det.scans - scans)
         runs.append(model.runs)
-        both.append(detected[-1] and runs[-1])
         assert len(cmap.faces) == 1  # followed on every frame, the first too
         fx, fy = cmap.faces[0][:2]
         assert x - 5 <= fx <= x + 75 and y - 5 <= fy <= y + 90
-    assert both[0] and not any(both[1:]), (runs, detected)
-    # each as often as asked: a detection put off by a frame, never skipped
+    # the work a frame does is bounded: after the first, one band of the detector or
+    # the saliency model, never both, never more than one band
+    assert runs[0] == detected[0] == 1
+    assert all(r + d <= 1 for r, d in zip(runs[1:], detected[1:], strict=True)), (runs, detected)
+    # each as often as asked: the saliency model on its frames, the detector on every
+    # other frame it has work on (put off by a saliency frame, never skipped)
     assert sum(runs) == len(range(0, 25, saliency_every))
-    gaps = np.diff(np.flatnonzero(detected))
-    assert gaps.min() >= faces_every and gaps.max() <= faces_every + 1, detected
+    assert all(d == (w and not r) for d, w, r in zip(detected[1:], due[1:], runs[1:], strict=True))
+    unfinished = tracker.bands_scanned - 1 - slices * (tracker.detections - 1)
+    assert 0 <= unfinished < slices  # a detection is its bands, one a frame
+    assert tracker.detections - 1 >= (25 - 1) // (faces_every + slices + 1)
 
 
 def test_bad_frames_and_settings_refused(model: SaliencyModel) -> None:
