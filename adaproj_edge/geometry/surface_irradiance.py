@@ -1,0 +1,216 @@
+"""The relative irradiance at any projector pixel of an estimated surface.
+
+The device's surface is a lattice: a node per warp-grid vertex, made finer where its
+walls were snapped onto planes (:func:`~adaproj_edge.geometry.planes.snap_planes`).
+Between its nodes a lattice is bilinear, so the normals of points interpolated there
+are its cells' facets: on a curved surface they turn at every cell's edge, each node's
+depth noise tilts the cells around it, and a crease inside a cell is spread over it
+(the brightness gain made from them prints all three on the picture). So the light at
+a pixel (``V(r) cos(incidence) / d^2``, :mod:`adaproj_edge.geometry.irradiance`) is
+taken here from what the estimate knows better than its cells:
+
+- **on a snapped plane** it is exact: the pixel's ray ``r`` meets the plane
+  ``n . X = c`` at ``X``, where ``cos(incidence) / |X|^2 = |c| / |X|^3``. A pixel is on
+  the planes when every known corner of its lattice cell lies on one of those the
+  surface's ``meta`` lists (:func:`~adaproj_edge.geometry.planes.plane_equations`).
+  A cell whose corners lie on two planes holds their crease: each pixel takes the
+  nearer plane inside a corner and the farther outside one (which of the two, the
+  cell's corners say: each lies in front of the other plane inside a corner, behind it
+  outside one), so the light jumps at the crease's own pixel, as the surface does;
+- **elsewhere** the light of the lattice's own nodes (their normals from their
+  neighbours, each beside a crease from its own side) is interpolated bilinearly in
+  log: smooth light stays smooth, and a node's noise moves the light only around it.
+
+On a lattice at least as fine as the pixels asked for, the points there are as good
+as the nodes: the light is taken from the normals of the points themselves.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from adaproj_edge.arrays import FloatArray
+from adaproj_edge.geometry.depth.lattice import lattice_uv
+from adaproj_edge.geometry.irradiance import Vignetting, relative_irradiance
+from adaproj_edge.geometry.planes import on_planes, plane_equations
+from adaproj_edge.geometry.surface import Surface
+
+SMOOTH_DEG = 2.0
+"""The lattice nodes' light is blurred over this many degrees of the projector's view
+(a Gaussian's sigma): about one warp-grid cell at 1280x800 (the nodes' depth noise
+tilts their normals by a few per cent of light, uncorrelated from node to node)."""
+
+
+@dataclass(frozen=True)
+class PixelLight:
+    """The light at a lattice of projector pixels, and how far to trust it.
+
+    Attributes
+    ----------
+    light : (h, w) float array
+        The relative irradiance, NaN where the surface is unknown.
+    roughness : float
+        :func:`roughness` of the light it was made from: the lattice nodes' own
+        (before they were blurred) or, with ``smoothed`` False, the pixels'.
+    smoothed : bool
+        Whether the nodes' light was blurred over ``SMOOTH_DEG`` (a lattice coarser
+        than the pixels).
+    """
+
+    light: FloatArray
+    roughness: float
+    smoothed: bool
+
+
+def irradiance_at(
+    surface: Surface, uv: FloatArray, vignetting: Vignetting | None = None
+) -> PixelLight:
+    """The relative irradiance at the projector pixels ``uv`` (h, w, 2), a regular
+    lattice of the frame.
+
+    Parameters
+    ----------
+    surface : Surface
+        The estimated surface (any lattice; its ``meta`` may list snapped planes).
+    uv : (h, w, 2) float array
+        Projector pixels, a regular lattice (its spacing sets whether the surface's
+        lattice is finer).
+    vignetting : Vignetting, optional
+        The lens's falloff; None: none.
+
+    Returns
+    -------
+    PixelLight
+    """
+    uv = np.asarray(uv, dtype=np.float64)
+    lx, ly = surface.lattice_scale()
+    h, w = uv.shape[:2]
+    gx = float(uv[0, -1, 0] - uv[0, 0, 0]) / max(w - 1, 1)
+    gy = float(uv[-1, 0, 1] - uv[0, 0, 1]) / max(h - 1, 1)
+    if lx <= gx and ly <= gy:
+        e = relative_irradiance(surface.points_at(uv), surface.projector, uv, vignetting)
+        rough, smoothed = roughness(e), False
+    else:
+        nodes = node_light(surface, vignetting)
+        rough, smoothed = roughness(nodes), True
+        e = node_irradiance(surface, uv, vignetting, nodes)
+    flat, on = plane_irradiance(surface, uv, vignetting)
+    return PixelLight(np.where(on, flat, e), rough, smoothed)
+
+
+def node_light(surface: Surface, vignetting: Vignetting | None = None) -> FloatArray:
+    """The relative irradiance (rows, cols) of the surface's lattice nodes (normals
+    from their neighbours, crease-aware), unsmoothed."""
+    p = surface.projector
+    pts = surface.points.astype(np.float64)
+    return relative_irradiance(pts, p, lattice_uv(p, surface.shape), vignetting)
+
+
+def node_irradiance(
+    surface: Surface,
+    uv: FloatArray,
+    vignetting: Vignetting | None = None,
+    nodes: FloatArray | None = None,
+) -> FloatArray:
+    """The relative irradiance (...) at projector pixels ``uv`` (..., 2) interpolated
+    bilinearly, in log, from the light of the surface's lattice nodes (``nodes``, when
+    :func:`node_light` was made already) blurred over ``SMOOTH_DEG``; NaN where the
+    pixel's nearest node is unknown (as :meth:`Surface.depth_at` has it)."""
+    p = surface.projector
+    if nodes is None:
+        nodes = node_light(surface, vignetting)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        log_e = np.log(nodes)
+    sigma_px = math.radians(SMOOTH_DEG) * math.sqrt(float(p.K[0, 0]) * float(p.K[1, 1]))
+    lx, ly = surface.lattice_scale()
+    log_e = _smoothed(log_e, sigma_px / lx, sigma_px / ly)
+    # the surface's own bilinear stencil, reading the log light where it reads depth
+    packed = np.zeros((*surface.shape, 3), np.float32)
+    packed[..., 2] = log_e
+    out: FloatArray = np.exp(surface.stencil(uv).depth(packed))
+    return out
+
+
+def roughness(irradiance: FloatArray) -> float:
+    """The median |second difference| of log ``irradiance`` (h, w) along rows and
+    columns, where defined (0 when nowhere)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        le = np.log(irradiance)
+    d2 = np.concatenate(
+        [np.abs(np.diff(le, 2, axis=1)).ravel(), np.abs(np.diff(le, 2, axis=0)).ravel()]
+    )
+    d2 = d2[np.isfinite(d2)]
+    return float(np.median(d2)) if d2.size else 0.0
+
+
+def _smoothed(a: FloatArray, sx: float, sy: float) -> FloatArray:
+    """``a`` (h, w; NaN: unknown) blurred with a Gaussian of ``sx`` by ``sy`` nodes
+    over its known nodes only (normalised: an edge or a hole does not pull it down)."""
+    if sx <= 0 or sy <= 0:
+        return a
+    known = np.isfinite(a)
+
+    def blur(b: FloatArray) -> FloatArray:
+        got = cv2.GaussianBlur(b, (0, 0), sx, sigmaY=sy, borderType=cv2.BORDER_CONSTANT)
+        return np.asarray(got, dtype=np.float64)
+
+    num = blur(np.where(known, a, 0.0))
+    den = blur(known.astype(np.float64))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out: FloatArray = np.where(known, num / den, np.nan)
+    return out
+
+
+def plane_irradiance(
+    surface: Surface, uv: FloatArray, vignetting: Vignetting | None = None
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """The exact relative irradiance (...) at projector pixels ``uv`` (..., 2) that lie
+    on the surface's snapped planes, and where they do (...) bool (nowhere when its
+    ``meta`` lists none)."""
+    shape = np.shape(uv)[:-1]
+    eq = plane_equations(surface.meta)
+    if eq.shape[0] == 0:
+        return np.full(shape, np.nan), np.zeros(shape, bool)
+    p = surface.projector
+    pts = surface.points.astype(np.float64)
+    node_on = on_planes(pts.reshape(-1, 3), eq)  # (nodes, k)
+    known = np.isfinite(pts[..., 2]).reshape(-1)
+    st = surface.stencil(uv)
+    corners = (st.at - 2) // 3  # (4, N) the cell's corner nodes
+    on = node_on[corners]  # (4, N, k)
+    kn = known[corners]  # (4, N)
+    candidate = np.any(on, axis=0)  # (N, k): the planes the cell's corners lie on
+    flat = np.all(np.any(on, axis=2) | ~kn, axis=0) & np.any(kn, axis=0) & ~st.outside
+    # inside a corner each corner node lies in front of the cell's other plane(s)
+    node_rays = pts.reshape(-1, 3)[corners]  # (4, N, 3)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z_other = eq[:, 3] / ((node_rays / node_rays[..., 2:3]) @ eq[:, :3].T)  # (4, N, k)
+        ahead = np.sign(z_other - node_rays[..., 2:3])
+    vote = np.where(candidate[None] & ~on & kn[..., None] & np.isfinite(ahead), ahead, 0.0)
+    inside = vote.sum(axis=(0, 2)) >= 0  # (N,)
+    rays = p.rays(np.asarray(uv, dtype=np.float64).reshape(-1, 2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = eq[:, 3] / (rays @ eq[:, :3].T)  # (N, k) each plane's depth on the ray
+    z = np.where(candidate & (z > 0), z, np.nan)
+    pick = np.where(
+        inside,
+        np.argmin(np.where(np.isfinite(z), z, np.inf), axis=1),
+        np.argmax(np.where(np.isfinite(z), z, -np.inf), axis=1),
+    )
+    n_idx = np.arange(z.shape[0])
+    zp = z[n_idx, pick]
+    flat &= np.isfinite(zp) & np.isfinite(st.depth(surface.points).reshape(-1))
+    x = rays * zp[:, None]
+    dist = np.linalg.norm(x, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        e = np.abs(eq[pick, 3]) / dist**3
+    if vignetting is not None and not vignetting.none:
+        e = e * vignetting.at(p, np.asarray(uv, dtype=np.float64).reshape(-1, 2))
+    flat &= np.isfinite(e) & (e > 0)
+    e = np.where(flat, e, np.nan)
+    return e.reshape(shape), flat.reshape(shape)
