@@ -67,6 +67,15 @@ class PixelLight:
     smoothed: bool
 
 
+NEAR_DEG = 2.0
+"""A pixel's plane is one with nodes within this many degrees of the projector's view
+(about one warp-grid cell: a snapped lattice's nodes beside a crease may have taken
+the other wall's plane that far from it)."""
+CREASE_AGREE = 0.9
+"""Two planes meet in a crease when this share of their nodes (net) lies on the same
+side of the other plane (all of them, on a fold; about half, on a step)."""
+
+
 def irradiance_at(
     surface: Surface, uv: FloatArray, vignetting: Vignetting | None = None
 ) -> PixelLight:
@@ -171,12 +180,21 @@ def plane_irradiance(
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """The exact relative irradiance (...) at projector pixels ``uv`` (..., 2) that lie
     on the surface's snapped planes, and where they do (...) bool (nowhere when its
-    ``meta`` lists none)."""
+    ``meta`` lists none).
+
+    A pixel lies on the planes when every known corner of its lattice cell lies on one.
+    Its plane is one of those with nodes within ``NEAR_DEG`` of it: of two that meet in
+    a crease, the nearer inside a corner and the farther outside one (the lattice's
+    nodes beside a crease may have been snapped to the other wall: its cells do not say
+    where the crease runs); of two that do not (a step: a box before a wall), and among
+    what is left, one its cell's corners lie on, nearest the lattice's depth there.
+    """
     shape = np.shape(uv)[:-1]
     eq = plane_equations(surface.meta)
     if eq.shape[0] == 0:
         return np.full(shape, np.nan), np.zeros(shape, bool)
     p = surface.projector
+    uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
     pts = surface.points.astype(np.float64)
     node_on = on_planes(pts.reshape(-1, 3), eq)  # (nodes, k)
     known = np.isfinite(pts[..., 2]).reshape(-1)
@@ -184,33 +202,72 @@ def plane_irradiance(
     corners = (st.at - 2) // 3  # (4, N) the cell's corner nodes
     on = node_on[corners]  # (4, N, k)
     kn = known[corners]  # (4, N)
-    candidate = np.any(on, axis=0)  # (N, k): the planes the cell's corners lie on
     flat = np.all(np.any(on, axis=2) | ~kn, axis=0) & np.any(kn, axis=0) & ~st.outside
-    # inside a corner each corner node lies in front of the cell's other plane(s)
-    node_rays = pts.reshape(-1, 3)[corners]  # (4, N, 3)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        z_other = eq[:, 3] / ((node_rays / node_rays[..., 2:3]) @ eq[:, :3].T)  # (4, N, k)
-        ahead = np.sign(z_other - node_rays[..., 2:3])
-    vote = np.where(candidate[None] & ~on & kn[..., None] & np.isfinite(ahead), ahead, 0.0)
-    inside = vote.sum(axis=(0, 2)) >= 0  # (N,)
-    rays = p.rays(np.asarray(uv, dtype=np.float64).reshape(-1, 2))
+    cornered = np.any(on, axis=0)  # (N, k): the planes the cell's corners lie on
+    nearest = corners[0] + np.rint(st.gy - st.y0).astype(np.intp) * surface.shape[1]
+    nearest += np.rint(st.gx - st.x0).astype(np.intp)
+    near = _near_planes(surface, node_on)[nearest] | cornered  # (N, k)
+    side = _crease_sides(pts.reshape(-1, 3), node_on, eq)  # (k, k)
+    rays = p.rays(uv)
     with np.errstate(invalid="ignore", divide="ignore"):
         z = eq[:, 3] / (rays @ eq[:, :3].T)  # (N, k) each plane's depth on the ray
-    z = np.where(candidate & (z > 0), z, np.nan)
-    pick = np.where(
-        inside,
-        np.argmin(np.where(np.isfinite(z), z, np.inf), axis=1),
-        np.argmax(np.where(np.isfinite(z), z, -np.inf), axis=1),
-    )
-    n_idx = np.arange(z.shape[0])
-    zp = z[n_idx, pick]
-    flat &= np.isfinite(zp) & np.isfinite(st.depth(surface.points).reshape(-1))
-    x = rays * zp[:, None]
-    dist = np.linalg.norm(x, axis=-1)
+    z = np.where(near & (z > 0), z, np.nan)
+    beaten = np.zeros(z.shape, bool)
+    for k in range(eq.shape[0]):
+        for j in range(eq.shape[0]):
+            if side[k, j] != 0:  # k and j meet in a crease: the wrong side loses
+                with np.errstate(invalid="ignore"):
+                    beaten[:, k] |= side[k, j] * (z[:, k] - z[:, j]) > 0
+    free = np.isfinite(z) & ~beaten
+    prefer = np.where(np.any(free & cornered, axis=1, keepdims=True), free & cornered, free)
+    z_lattice = st.depth(surface.points).reshape(-1, 1)
+    gap = np.where(prefer, np.abs(z - z_lattice), np.inf)
+    pick = np.argmin(np.where(np.isfinite(gap), gap, np.where(prefer, 0.0, np.inf)), axis=1)
+    zp = z[np.arange(z.shape[0]), pick]
+    flat &= np.any(prefer, axis=1) & np.isfinite(zp) & np.isfinite(z_lattice[:, 0])
+    dist = np.linalg.norm(rays * zp[:, None], axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):
         e = np.abs(eq[pick, 3]) / dist**3
     if vignetting is not None and not vignetting.none:
-        e = e * vignetting.at(p, np.asarray(uv, dtype=np.float64).reshape(-1, 2))
+        e = e * vignetting.at(p, uv)
     flat &= np.isfinite(e) & (e > 0)
     e = np.where(flat, e, np.nan)
     return e.reshape(shape), flat.reshape(shape)
+
+
+def _near_planes(surface: Surface, node_on: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """(nodes, k): the planes with a node within ``NEAR_DEG`` of each node."""
+    p = surface.projector
+    rows, cols = surface.shape
+    r_px = math.radians(NEAR_DEG) * math.sqrt(float(p.K[0, 0]) * float(p.K[1, 1]))
+    lx, ly = surface.lattice_scale()
+    kernel = np.ones((2 * math.ceil(r_px / ly) + 1, 2 * math.ceil(r_px / lx) + 1), np.uint8)
+    out = np.zeros(node_on.shape, bool)
+    for k in range(node_on.shape[1]):
+        on = node_on[:, k].reshape(rows, cols).astype(np.uint8)
+        out[:, k] = np.asarray(cv2.dilate(on, kernel), bool).reshape(-1)
+    return out
+
+
+def _crease_sides(
+    points: FloatArray, node_on: NDArray[np.bool_], eq: FloatArray
+) -> NDArray[np.int8]:
+    """(k, k): +1 where two planes meet in a crease seen from inside (each plane's nodes
+    lie in front of the other plane: the nearer is the surface), -1 from outside (the
+    farther), 0 where their nodes do not agree on it (a step, not a crease)."""
+    k = eq.shape[0]
+    side = np.zeros((k, k), np.int8)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rays = points / points[:, 2:3]
+        z = eq[:, 3] / (rays @ eq[:, :3].T)  # (nodes, k)
+    for a in range(k):
+        for b in range(a + 1, k):
+            only = (node_on[:, a] ^ node_on[:, b]) & np.isfinite(z[:, a] + z[:, b])
+            own = np.where(node_on[:, a], z[:, a], z[:, b])[only]
+            other = np.where(node_on[:, a], z[:, b], z[:, a])[only]
+            if own.size == 0:
+                continue
+            vote = float(np.mean(np.sign(other - own)))
+            if abs(vote) >= CREASE_AGREE:
+                side[a, b] = side[b, a] = 1 if vote > 0 else -1
+    return side

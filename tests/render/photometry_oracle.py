@@ -15,6 +15,7 @@ application are the code under test).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,6 +26,7 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.analytic import AnalyticSurface, get_surface, simulate_surface
 from adaproj_edge.geometry.projector import Projector
+from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.photometry import GainMap, PhotometrySettings, apply_gain, gain_map
 from adaproj_edge.render.project import show
 from adaproj_edge.render.viewer import DEFAULT_VIEWER, Viewer, viewer_for
@@ -191,6 +193,10 @@ def seen_brightness(
 GREY = 128
 """Mid-grey content, the value of the Done-when figures."""
 
+CITED_GRADIENT = 0.02
+"""The threshold the viewer's brightness must stay under: 2 % per degree of visual angle
+(docs/photometry.md); the gain is made for 1 % in the projector's own angles."""
+
 
 @dataclass(frozen=True)
 class GreyCase:
@@ -235,3 +241,24 @@ def grey_case(
     before = seen_brightness(analytic, p, shown.frame, viewer, s.gamma)
     after = seen_brightness(analytic, p, apply_gain(shown.frame, gain), viewer, s.gamma)
     return GreyCase(before, after, gain, shown.frame)
+
+
+def creased(
+    projector: Projector, angle_deg: float, slope: float
+) -> tuple[Surface, FloatArray, FloatArray]:
+    """A wall facing the projector 1.5 m away, folded away along a straight crease
+    through the frame's centre at ``angle_deg`` (the other wall's depth grows by
+    ``slope`` per unit of the ray's offset across the crease): the surface, its exact
+    relative irradiance per frame pixel (cos / d^2 from the analytic normals, written
+    here) and each pixel's signed distance from the crease (pixels)."""
+    c, s = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
+    r = projector.rays(projector.pixel_grid())
+    r = r / r[..., 2:3]
+    q = r[..., 0] * c + r[..., 1] * s
+    pts = r * (1.5 / (1.0 + slope * np.maximum(q, 0.0)))[..., None]
+    side = (q > 0).astype(np.float64)
+    n = np.stack([slope * side * c, slope * side * s, np.ones_like(q)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    d = np.linalg.norm(pts, axis=-1)
+    e = np.abs(np.sum(n * pts, axis=-1)) / d**3
+    return Surface(pts.astype(np.float32), projector), e, q * float(projector.K[0, 0])
