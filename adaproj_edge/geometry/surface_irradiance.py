@@ -101,6 +101,9 @@ def irradiance_at(
     h, w = uv.shape[:2]
     gx = float(uv[0, -1, 0] - uv[0, 0, 0]) / max(w - 1, 1)
     gy = float(uv[-1, 0, 1] - uv[0, 0, 1]) / max(h - 1, 1)
+    flat, on = plane_irradiance(surface, uv, vignetting)
+    if on.all():  # exact throughout
+        return PixelLight(flat, 0.0, False)
     if lx <= gx and ly <= gy:
         e = relative_irradiance(surface.points_at(uv), surface.projector, uv, vignetting)
         rough, smoothed = roughness(e), False
@@ -108,7 +111,6 @@ def irradiance_at(
         nodes = node_light(surface, vignetting)
         rough, smoothed = roughness(nodes), True
         e = node_irradiance(surface, uv, vignetting, nodes)
-    flat, on = plane_irradiance(surface, uv, vignetting)
     return PixelLight(np.where(on, flat, e), rough, smoothed)
 
 

@@ -349,14 +349,16 @@ def crease_gain(
     u = np.repeat(left, rows)[:, None] + np.arange(bw + 2 * m)[None, :]
     v = np.broadcast_to(v[:, None], u.shape)
     uv = np.stack([u, v], axis=-1).astype(np.float64)
-    if fine:
-        e = relative_irradiance(surface.points_at(uv), p, uv, vignetting)
-    else:  # the lattice's cells are no guide at a frame pixel: its nodes' light
-        e = node_irradiance(surface, uv, vignetting)
     inner = (k >= m) & (k < np.repeat(rows, rows) - m)
-    e, u, v = e[inner, m:-m], u[inner, m:-m], v[inner, m:-m]
-    exact, on = plane_irradiance(surface, np.stack([u, v], axis=-1).astype(np.float64), vignetting)
-    e = np.where(on, exact, e)
+    u, v = u[inner, m:-m], v[inner, m:-m]
+    at = np.stack([u, v], axis=-1).astype(np.float64)
+    e, on = plane_irradiance(surface, at, vignetting)  # exact on snapped planes
+    if not on.all():
+        if fine:
+            rest = relative_irradiance(surface.points_at(uv), p, uv, vignetting)[inner, m:-m]
+        else:  # the lattice's cells are no guide at a frame pixel: its nodes' light
+            rest = node_irradiance(surface, at, vignetting)
+        e = np.where(on, e, rest)
     t = _bilinear(target, (u + 0.5) / sx - 0.5, (v + 0.5) / sy - 0.5)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         g = np.minimum(np.exp(t) / e, 1.0)

@@ -243,6 +243,55 @@ def grey_case(
     return GreyCase(before, after, gain, shown.frame)
 
 
+def device_grey_case(
+    name: str,
+    eye: tuple[float, float, float] = DEFAULT_VIEWER,
+    frames: int = 3,
+    seed: int = 0,
+) -> GreyCase:
+    """Mid-grey content on the built-in surface ``name`` as the device shows it, with
+    ``[display] compensate`` on: ``frames`` simulated OAK-D depth frames of it (the
+    nominal calibration's rig, the device still at the origin) through the runtime's
+    surface source (estimate at the warp grid's lattice, average, walls snapped), its
+    warp source (the pose's content-free warp, its display maps and its gain, at the
+    runtime's settings) and the frame rendered from those maps; the brightness the
+    viewer at ``eye`` sees before and after (:func:`seen_brightness` of the true
+    analytic surface)."""
+    from adaproj_edge.app.settings import AppSettings
+    from adaproj_edge.app.surfaces import SurfaceSource
+    from adaproj_edge.app.telemetry import Telemetry
+    from adaproj_edge.app.warps import WarpSource
+    from adaproj_edge.geometry.calibration import Calibration
+    from adaproj_edge.hal.depth import DepthFrame
+    from adaproj_edge.render.frame import render_frame
+    from adaproj_edge.session.simulator import Scene
+    from adaproj_edge.session.stereo import default_noise, stereo_depth
+
+    cal = Calibration.default()
+    d, T = cal.depth, cal.T_P_D
+    pts = Scene.load(name).points_seen(d.K, d.width, d.height, T[:3, :3], T[:3, 3])
+    rng = np.random.default_rng(seed)
+    settings = AppSettings(photometry=PhotometrySettings(scale=AppSettings().map_scale))
+    telemetry = Telemetry(100)
+    surfaces = SurfaceSource(cal, settings, telemetry.times)
+    for k in range(frames):
+        depth = stereo_depth(pts, d, default_noise(), rng, pts @ T[:3, :3].T + T[:3, 3])
+        est = surfaces.filter.update(surfaces.estimate(DepthFrame(k, k, k, depth)), k > 0)
+    surface = surfaces.prepared(est)
+    warps = WarpSource(cal.projector, settings, telemetry)
+    size = (800, 600)
+    entry, _ = warps.pose(surface, frames, 0, np.zeros(3), size, WarpSettings(mode="content"))
+    gain = warps.gain(entry, surface)
+    assert gain is not None
+    grey = np.full((size[1], size[0], 3), GREY, np.uint8)
+    plain = render_frame(grey, warps.content_free_maps(entry))
+    analytic = get_surface(name)
+    viewer = viewer_for(surface, eye)
+    before = seen_brightness(analytic, cal.projector, plain, viewer)
+    after = seen_brightness(analytic, cal.projector, apply_gain(plain, gain), viewer)
+    return GreyCase(before, after, gain, plain)
+
+
 def creased(
     projector: Projector, angle_deg: float, slope: float
 ) -> tuple[Surface, FloatArray, FloatArray]:
