@@ -3,7 +3,9 @@ light over the picture, and its application to a frame.
 
 The relative irradiance ``E`` of every projector pixel comes from the surface's
 distance and incidence and the lens's vignetting
-(:func:`~adaproj_edge.geometry.irradiance.relative_irradiance`). A Lambertian surface
+(:func:`~adaproj_edge.geometry.irradiance.relative_irradiance`; on a lattice coarser
+than the gain, as the device's, from its snapped planes and its nodes' light:
+:func:`~adaproj_edge.geometry.surface_irradiance.irradiance_at`). A Lambertian surface
 looks as bright as it is lit from every direction, so evening out ``E`` evens out
 what every viewer sees of uniform content (the surface's own colour and the room's
 light are not known here: not compensated).
@@ -308,9 +310,11 @@ def crease_gain(
     the full-frame lattice, each wall's own) and the smooth target ``target`` (log,
     continuous across the crease) interpolated, so the gain jumps where the surface
     bends, not over a reduced pixel. Only on a surface sampled at least twice as finely
-    as the reduced frame (``FINE_LATTICE``): between the nodes of a coarser lattice the
-    surface is bilinear, and the normals of the patch that straddles the crease are
-    neither wall's.
+    as the reduced frame (``FINE_LATTICE``), or whose walls were snapped onto planes
+    (their pixels' light is exact: :func:`~adaproj_edge.geometry.surface_irradiance.
+    plane_irradiance`; the rest is its nodes' light): between the nodes of a coarser
+    lattice the surface is bilinear, and the normals of the patch that straddles the
+    crease are neither wall's.
     """
     p = surface.projector
     h, w = light.shape
