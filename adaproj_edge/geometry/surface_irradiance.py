@@ -13,13 +13,14 @@ taken here from what the estimate knows better than its cells:
   ``n . X = c`` at ``X``, where ``cos(incidence) / |X|^2 = |c| / |X|^3``. A pixel is on
   the planes when every known corner of its lattice cell lies on one of those the
   surface's ``meta`` lists (:func:`~adaproj_edge.geometry.planes.plane_equations`).
-  A cell whose corners lie on two planes holds their crease: each pixel takes the
-  nearer plane inside a corner and the farther outside one (which of the two, the
-  cell's corners say: each lies in front of the other plane inside a corner, behind it
-  outside one), so the light jumps at the crease's own pixel, as the surface does;
+  Of two planes with nodes near the pixel that meet in a crease, it takes the nearer
+  inside a corner and the farther outside one (which, their nodes say: each lies in
+  front of the other plane inside a corner, behind it outside one), so the light jumps
+  where the planes meet, not where the snapped lattice's cells put the crease;
 - **elsewhere** the light of the lattice's own nodes (their normals from their
-  neighbours, each beside a crease from its own side) is interpolated bilinearly in
-  log: smooth light stays smooth, and a node's noise moves the light only around it.
+  neighbours, each beside a crease from its own side), blurred over ``SMOOTH_DEG`` and
+  interpolated bilinearly in log: smooth light stays smooth, and the nodes' depth noise
+  is averaged out rather than printed.
 
 On a lattice at least as fine as the pixels asked for, the points there are as good
 as the nodes: the light is taken from the normals of the points themselves.
