@@ -13,7 +13,11 @@ asserts at 640x400): max/min of the brightness over the picture (goal <= 1.10), 
 after / before (goal >= 0.7) and the largest change of brightness per degree of the
 viewer's visual angle over a 1-degree baseline (goal: under the cited 2 %), before and
 after. Beside them the module's own prediction and the gain's own largest change per
-degree (it jumps at a crease on purpose: the brightness does not).
+degree (it jumps at a crease on purpose: the brightness does not). Then the same
+surfaces through the device's own path (``--device-frames``, "device"): simulated
+OAK-D depth frames of the device held still, the runtime's surface source (the warp
+grid's lattice, averaged, walls snapped) and warp source (its content-free warp and
+gain at the runtime's settings, 1/4 of the frame), judged by the same ray cast.
 
 The cost: CPU time (``time.process_time``) of making the gain map (once per pose) and
 of applying it to a 1280x800 BGR frame (every displayed frame), median and 95th
@@ -34,7 +38,7 @@ the cost of measuring (once per calibration) and the frames the captures take.
 
     .venv/bin/python tools/bench_photometric.py [--surfaces corner,sphere-concave,bowl]
         [--scale 2] [--frames 300] [--colour 24 --seed 0 --size 640x400]
-        [--albedo a.png,b.png] [--lift 0.8]
+        [--albedo a.png,b.png] [--lift 0.8] [--device-frames 3]
 """
 
 from __future__ import annotations
@@ -73,6 +77,13 @@ def main() -> None:
     p.add_argument("--albedo", default="", help="albedo pictures to score, comma-separated")
     p.add_argument("--no-geometric", action="store_true", help="only the colour figures")
     p.add_argument(
+        "--device-frames",
+        type=int,
+        default=3,
+        help="also the figures through the device's path: this many simulated OAK-D depth "
+        "frames, the runtime's surface and warp source, its gain (0: not)",
+    )
+    p.add_argument(
         "--lift",
         type=float,
         default=None,
@@ -94,7 +105,7 @@ def main() -> None:
         degrees_per_pixel,
         gain_map,
     )
-    from tests.render.photometry_oracle import grey_case
+    from tests.render.photometry_oracle import device_grey_case, grey_case
 
     settings = PhotometrySettings() if args.scale is None else PhotometrySettings(scale=args.scale)
     if args.colour > 0 or args.albedo:
@@ -110,16 +121,23 @@ def main() -> None:
         f"(projector angles), evenness {settings.evenness}, budget {settings.budget}"
     )
     head = (
-        f"{'surface':16} {'max/min before':>14} {'after':>7} {'mean after/before':>17} "
+        f"{'surface':23} {'max/min before':>14} {'after':>7} {'mean after/before':>17} "
         f"{'grad/deg before':>15} {'after':>7} | {'predicted':>9} {'gain grad/deg':>13}"
     )
     print(head)
-    for name in args.surfaces.split(","):
-        case = grey_case(name, projector, eye, settings, mode=args.mode)
+    cases = [(n, "", False) for n in args.surfaces.split(",")]
+    if args.device_frames > 0:  # the device's own surface, warp and gain (scale 1/4)
+        cases += [(n, "device", True) for n in args.surfaces.split(",")]
+    for name, tag, device in cases:
+        if device:
+            case = device_grey_case(name, eye, frames=args.device_frames)
+        else:
+            case = grey_case(name, projector, eye, settings, mode=args.mode)
         b, a, gm = case.before, case.after, case.gain
         deg = degrees_per_pixel(projector) * projector.width / gm.light.shape[1]
+        label = f"{name} ({tag})" if tag else name
         print(
-            f"{name:16} {b.ratio():14.3f} {a.ratio():7.3f} {a.mean() / b.mean():17.3f} "
+            f"{label:23} {b.ratio():14.3f} {a.ratio():7.3f} {a.mean() / b.mean():17.3f} "
             f"{b.gradient_per_deg():15.4f} {a.gradient_per_deg():7.4f} | "
             f"{gm.ratio_after:9.3f} {_gain_gradient(gm.light, deg):13.3f}"
             + (f"  ({gm.reason})" if gm.reason else "")

@@ -539,7 +539,7 @@ class Runtime:
         self.surface, self._surface_frames = surface, frames
         self._shown_depth = surface.points[..., 2].astype(np.float64)
         self.output.content = item.name
-        gain = self.warps.gain(entry, surface)
+        gain = self.warps.gain(entry, surface, frames)
         self.output.set(warp, maps, gain)
         self._shown_kind, self._entry = kind, entry
         frame = self.output.render(self._image(), reason, kind, notify=False)

@@ -3,7 +3,9 @@ light over the picture, and its application to a frame.
 
 The relative irradiance ``E`` of every projector pixel comes from the surface's
 distance and incidence and the lens's vignetting
-(:func:`~adaproj_edge.geometry.irradiance.relative_irradiance`). A Lambertian surface
+(:func:`~adaproj_edge.geometry.irradiance.relative_irradiance`; on a lattice coarser
+than the gain, as the device's, from its snapped planes and its nodes' light:
+:func:`~adaproj_edge.geometry.surface_irradiance.irradiance_at`). A Lambertian surface
 looks as bright as it is lit from every direction, so evening out ``E`` evens out
 what every viewer sees of uniform content (the surface's own colour and the room's
 light are not known here: not compensated).
@@ -50,8 +52,14 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import BoolArray, Float32Array, FloatArray, Image
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.irradiance import Vignetting, relative_irradiance
+from adaproj_edge.geometry.planes import plane_equations
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.geometry.surface_irradiance import (
+    irradiance_at,
+    node_irradiance,
+    plane_irradiance,
+)
 
 log = logging.getLogger(__name__)
 
@@ -72,6 +80,12 @@ MAX_ROUGHNESS = 0.01
 reduced frame above which the normals are taken to follow depth noise, not the surface:
 smooth surfaces, creased or carrying relief, stay under 1e-4; a stereo staircase of
 depth steps fed in unsmoothed gives 0.08 and more."""
+MAX_NODE_ROUGHNESS = 0.05
+"""The same limit for a lattice coarser than the reduced frame, judged on its nodes'
+own light before it is blurred (:mod:`adaproj_edge.geometry.surface_irradiance`; the
+blur absorbs noise of that size): the device's estimated surfaces give 0.0001-0.015
+(a bowl at 1.75 m the most), the stereo staircase fed in unsmoothed on a 4-pixel
+lattice 0.17."""
 
 
 @dataclass(frozen=True)
@@ -247,7 +261,8 @@ def gain_map(
     p = surface.projector
     uv = reduced_grid(p, s.scale)
     h, w = uv.shape[:2]
-    e = relative_irradiance(surface.points_at(uv), p, uv, vignetting)
+    got = irradiance_at(surface, uv, vignetting)
+    e, rough = got.light, got.roughness
     # surface area per pixel ~ d^2 / cos = V / E: brightness means are over the surface
     v = np.ones((h, w)) if vignetting is None else vignetting.at(p, uv)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -259,12 +274,12 @@ def gain_map(
             pic = mask.astype(np.uint8) * 255
             mask = cv2.resize(pic, (w, h), interpolation=cv2.INTER_AREA) > 127
     step = degrees_per_pixel(p) * p.width / w
-    rough = roughness(e)
+    limit = MAX_NODE_ROUGHNESS if got.smoothed else MAX_ROUGHNESS
     stats: Stats
     fine = None
-    if rough > MAX_ROUGHNESS:
+    if rough > limit:
         said = (
-            f"the surface's light varies from pixel to pixel ({rough:.3f} > {MAX_ROUGHNESS}): "
+            f"the surface's light varies from pixel to pixel ({rough:.3f} > {limit}): "
             "its normals follow depth noise, not compensated"
         )
         light, stats = np.ones((h, w), np.float32), (1.0, 1.0, 1.0, 0.0, said)
@@ -295,15 +310,18 @@ def crease_gain(
     the full-frame lattice, each wall's own) and the smooth target ``target`` (log,
     continuous across the crease) interpolated, so the gain jumps where the surface
     bends, not over a reduced pixel. Only on a surface sampled at least twice as finely
-    as the reduced frame (``FINE_LATTICE``): between the nodes of a coarser lattice the
-    surface is bilinear, and the normals of the patch that straddles the crease are
-    neither wall's.
+    as the reduced frame (``FINE_LATTICE``), or whose walls were snapped onto planes
+    (their pixels' light is exact: :func:`~adaproj_edge.geometry.surface_irradiance.
+    plane_irradiance`; the rest is its nodes' light): between the nodes of a coarser
+    lattice the surface is bilinear, and the normals of the patch that straddles the
+    crease are neither wall's.
     """
     p = surface.projector
     h, w = light.shape
     sx, sy = p.width / w, p.height / h
     lx, ly = surface.lattice_scale()
-    if (sx <= 1.0 and sy <= 1.0) or lx > FINE_LATTICE * sx or ly > FINE_LATTICE * sy:
+    fine = lx <= FINE_LATTICE * sx and ly <= FINE_LATTICE * sy
+    if (sx <= 1.0 and sy <= 1.0) or not (fine or plane_equations(surface.meta).size):
         return None  # the frame's pixels know no more of the surface than the reduced ones
     lg = np.log(light.astype(np.float64))
     along_x = np.zeros((h, w), np.uint8)
@@ -335,9 +353,16 @@ def crease_gain(
     u = np.repeat(left, rows)[:, None] + np.arange(bw + 2 * m)[None, :]
     v = np.broadcast_to(v[:, None], u.shape)
     uv = np.stack([u, v], axis=-1).astype(np.float64)
-    e = relative_irradiance(surface.points_at(uv), p, uv, vignetting)
     inner = (k >= m) & (k < np.repeat(rows, rows) - m)
-    e, u, v = e[inner, m:-m], u[inner, m:-m], v[inner, m:-m]
+    u, v = u[inner, m:-m], v[inner, m:-m]
+    at = np.stack([u, v], axis=-1).astype(np.float64)
+    e, on = plane_irradiance(surface, at, vignetting)  # exact on snapped planes
+    if not on.all():
+        if fine:
+            rest = relative_irradiance(surface.points_at(uv), p, uv, vignetting)[inner, m:-m]
+        else:  # the lattice's cells are no guide at a frame pixel: its nodes' light
+            rest = node_irradiance(surface, at, vignetting)
+        e = np.where(on, e, rest)
     t = _bilinear(target, (u + 0.5) / sx - 0.5, (v + 0.5) / sy - 0.5)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         g = np.minimum(np.exp(t) / e, 1.0)
@@ -358,18 +383,6 @@ def _bilinear(a: FloatArray, x: FloatArray, y: FloatArray) -> FloatArray:
     bottom = a[y0 + 1, x0] * (1.0 - fx) + a[y0 + 1, x0 + 1] * fx
     out: FloatArray = top * (1.0 - fy) + bottom * fy
     return out
-
-
-def roughness(irradiance: FloatArray) -> float:
-    """The median |second difference| of log ``irradiance`` (h, w) along rows and
-    columns, where defined (0 when nowhere)."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        le = np.log(irradiance)
-    d2 = np.concatenate(
-        [np.abs(np.diff(le, 2, axis=1)).ravel(), np.abs(np.diff(le, 2, axis=0)).ravel()]
-    )
-    d2 = d2[np.isfinite(d2)]
-    return float(np.median(d2)) if d2.size else 0.0
 
 
 Stats = tuple[float, float, float, float, str | None]

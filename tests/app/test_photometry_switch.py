@@ -62,7 +62,12 @@ def test_a_pose_keeps_its_gain() -> None:
     assert not hit and gain is not None and entry.gain is gain
     again, hit = on.pose(s, 5, 0, o, SIZE, ws)
     assert hit and again is entry and on.gain(again, s) is gain  # made once per pose
+    assert on.gain(again, s, 9) is gain  # a surface averaged a little longer: kept
     assert len(on.times.samples["gain"]) == 1
+    # averaged over twice the frames: made again (its crease placed better), then kept
+    longer = on.gain(again, s, 10)
+    assert longer is not None and longer is not gain and again.gain is longer
+    assert on.gain(again, s, 12) is longer and len(on.times.samples["gain"]) == 2
     assert gain.ratio_before > 1.5 and gain.ratio_after < gain.ratio_before
     assert float(gain.light.max()) <= 1.0 < gain.ratio_before
 

@@ -15,6 +15,7 @@ application are the code under test).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,6 +26,7 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.analytic import AnalyticSurface, get_surface, simulate_surface
 from adaproj_edge.geometry.projector import Projector
+from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.render.photometry import GainMap, PhotometrySettings, apply_gain, gain_map
 from adaproj_edge.render.project import show
 from adaproj_edge.render.viewer import DEFAULT_VIEWER, Viewer, viewer_for
@@ -191,6 +193,10 @@ def seen_brightness(
 GREY = 128
 """Mid-grey content, the value of the Done-when figures."""
 
+CITED_GRADIENT = 0.02
+"""The threshold the viewer's brightness must stay under: 2 % per degree of visual angle
+(docs/photometry.md); the gain is made for 1 % in the projector's own angles."""
+
 
 @dataclass(frozen=True)
 class GreyCase:
@@ -235,3 +241,73 @@ def grey_case(
     before = seen_brightness(analytic, p, shown.frame, viewer, s.gamma)
     after = seen_brightness(analytic, p, apply_gain(shown.frame, gain), viewer, s.gamma)
     return GreyCase(before, after, gain, shown.frame)
+
+
+def device_grey_case(
+    name: str,
+    eye: tuple[float, float, float] = DEFAULT_VIEWER,
+    frames: int = 3,
+    seed: int = 0,
+) -> GreyCase:
+    """Mid-grey content on the built-in surface ``name`` as the device shows it, with
+    ``[display] compensate`` on: ``frames`` simulated OAK-D depth frames of it (the
+    nominal calibration's rig, the device still at the origin) through the runtime's
+    surface source (estimate at the warp grid's lattice, average, walls snapped), its
+    warp source (the pose's content-free warp, its display maps and its gain, at the
+    runtime's settings) and the frame rendered from those maps; the brightness the
+    viewer at ``eye`` sees before and after (:func:`seen_brightness` of the true
+    analytic surface)."""
+    from adaproj_edge.app.settings import AppSettings
+    from adaproj_edge.app.surfaces import SurfaceSource
+    from adaproj_edge.app.telemetry import Telemetry
+    from adaproj_edge.app.warps import WarpSource
+    from adaproj_edge.geometry.calibration import Calibration
+    from adaproj_edge.hal.depth import DepthFrame
+    from adaproj_edge.render.frame import render_frame
+    from adaproj_edge.session.simulator import Scene
+    from adaproj_edge.session.stereo import default_noise, stereo_depth
+
+    cal = Calibration.default()
+    d, T = cal.depth, cal.T_P_D
+    pts = Scene.load(name).points_seen(d.K, d.width, d.height, T[:3, :3], T[:3, 3])
+    rng = np.random.default_rng(seed)
+    settings = AppSettings(photometry=PhotometrySettings(scale=AppSettings().map_scale))
+    telemetry = Telemetry(100)
+    surfaces = SurfaceSource(cal, settings, telemetry.times)
+    for k in range(frames):
+        depth = stereo_depth(pts, d, default_noise(), rng, pts @ T[:3, :3].T + T[:3, 3])
+        est = surfaces.filter.update(surfaces.estimate(DepthFrame(k, k, k, depth)), k > 0)
+    surface = surfaces.prepared(est)
+    warps = WarpSource(cal.projector, settings, telemetry)
+    size = (800, 600)
+    entry, _ = warps.pose(surface, frames, 0, np.zeros(3), size, WarpSettings(mode="content"))
+    gain = warps.gain(entry, surface)
+    assert gain is not None
+    grey = np.full((size[1], size[0], 3), GREY, np.uint8)
+    plain = render_frame(grey, warps.content_free_maps(entry))
+    analytic = get_surface(name)
+    viewer = viewer_for(surface, eye)
+    before = seen_brightness(analytic, cal.projector, plain, viewer)
+    after = seen_brightness(analytic, cal.projector, apply_gain(plain, gain), viewer)
+    return GreyCase(before, after, gain, plain)
+
+
+def creased(
+    projector: Projector, angle_deg: float, slope: float
+) -> tuple[Surface, FloatArray, FloatArray]:
+    """A wall facing the projector 1.5 m away, folded away along a straight crease
+    through the frame's centre at ``angle_deg`` (the other wall's depth grows by
+    ``slope`` per unit of the ray's offset across the crease): the surface, its exact
+    relative irradiance per frame pixel (cos / d^2 from the analytic normals, written
+    here) and each pixel's signed distance from the crease (pixels)."""
+    c, s = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
+    r = projector.rays(projector.pixel_grid())
+    r = r / r[..., 2:3]
+    q = r[..., 0] * c + r[..., 1] * s
+    pts = r * (1.5 / (1.0 + slope * np.maximum(q, 0.0)))[..., None]
+    side = (q > 0).astype(np.float64)
+    n = np.stack([slope * side * c, slope * side * s, np.ones_like(q)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    d = np.linalg.norm(pts, axis=-1)
+    e = np.abs(np.sum(n * pts, axis=-1)) / d**3
+    return Surface(pts.astype(np.float32), projector), e, q * float(projector.K[0, 0])
