@@ -16,7 +16,7 @@ from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.geometry.depth.estimate import SurfaceEstimate, SurfaceEstimator
 from adaproj_edge.geometry.depth.temporal import SurfaceFilter
-from adaproj_edge.geometry.planes import snap_planes
+from adaproj_edge.geometry.planes import RawDepth, snap_planes
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.hal.depth import DepthFrame
 from adaproj_edge.warp.posecache import common_nodes
@@ -50,8 +50,11 @@ class SurfaceSource:
         onto their planes."""
         if self.settings.planes is None:
             return est.surface
+        raw = None if est.raw is None else RawDepth(est.raw, est.raw_step)
         with self.times.timer("planes"):
-            return snap_planes(est.surface, self.settings.planes, sensor=self.estimator.sensor)[0]
+            return snap_planes(
+                est.surface, self.settings.planes, sensor=self.estimator.sensor, raw=raw
+            )[0]
 
     def depth_problem(self, frame: DepthFrame, coverage: float) -> tuple[str, str]:
         """The fault (kind, message) of a frame whose surface covers too little."""

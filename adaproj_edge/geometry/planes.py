@@ -23,6 +23,14 @@ plane by no more than that slow error is planar whatever its bend ratio. Curved
 surfaces (a column, a dome, a bowl) never meet that on a large piece and are left as
 they are.
 
+Given the depth the lattice was estimated from before its smoothing (:class:`RawDepth`),
+a piece's plane is fitted to the raw points under it, weighted by the sensor's noise
+model and robustly (:func:`fit_plane_raw`): at a few metres a Kinect's depth error is
+centimetres and the smoothed lattice of a small piece tilts with it. And a lattice cell
+that an object's edge runs through (some corners on a plane, some not) takes the plane
+where its raw depth lies on it, rather than a slope interpolated across the edge, on
+which content would be shown distorted.
+
 The snapped surface's ``meta`` lists the planes (``PLANES_KEY``: ``[nx, ny, nz, d]``
 each), so the warp can keep them undistorted (:func:`plane_equations`,
 :attr:`~adaproj_edge.warp.mesh.MeshGeometry.planar`).
@@ -44,6 +52,7 @@ from adaproj_edge.geometry.depth.sensor import SensorModel
 from adaproj_edge.geometry.surface import Surface
 
 PLANES_KEY = "plane_equations"  # a snapped surface's meta: its planes, [nx, ny, nz, d] each
+TUKEY_C = 4.685  # Tukey's biweight: residuals beyond this many errors weigh nothing
 ON_PLANE_REL = 1e-4  # a point this close to a plane (of its depth) lies on it (float32's
 # rounding of a snapped node is ~1e-7 of its depth; the sensor's noise is ~1e-3)
 
@@ -159,11 +168,105 @@ def bend_m(points: FloatArray, normal: FloatArray, offset: float, bend: float) -
     return rms * float(np.sqrt(max(1.0 - 1.0 / max(bend, 1.0) ** 2, 0.0)))
 
 
+@dataclass(frozen=True)
+class RawDepth:
+    """The depth a surface was estimated from, before any smoothing across its lattice.
+
+    ``points`` (fine rows, fine cols, 3): points in frame P on the rays of a lattice
+    ``step`` times finer than the surface's (its nodes are every ``step``-th), NaN
+    where the frame has no depth
+    (:attr:`~adaproj_edge.geometry.depth.estimate.SurfaceEstimate.raw`)."""
+
+    points: FloatArray
+    step: int = 1
+
+    def near_plane(
+        self, plane: Plane, tolerance_m: float | FloatArray, shape: tuple[int, int]
+    ) -> NDArray[np.bool_]:
+        """(rows, cols) on a lattice of ``shape`` over the same projector frame (its
+        corners the raw lattice's): whether the raw points there lie on ``plane``,
+        within ``tolerance_m`` (a scalar, or per raw point): whether most of the known
+        3 x 3 raw points around the nearest one do (one point's noise, or the one
+        point across an object's edge, does not decide)."""
+        r = np.abs(self.points.astype(np.float64) @ plane.normal - plane.offset)
+        ok = np.asarray(r < tolerance_m, dtype=np.float64)
+        ok[~np.isfinite(r)] = np.nan
+        pad = np.pad(ok, 1, constant_values=np.nan)
+        win = np.lib.stride_tricks.sliding_window_view(pad, (3, 3)).reshape(*ok.shape, 9)
+        with np.errstate(invalid="ignore"):
+            votes = np.nansum(win, axis=-1) / np.maximum(np.isfinite(win).sum(axis=-1), 1)
+        i = np.rint(np.linspace(0.0, ok.shape[0] - 1.0, shape[0])).astype(np.intp)
+        j = np.rint(np.linspace(0.0, ok.shape[1] - 1.0, shape[1])).astype(np.intp)
+        return np.asarray(votes[i[:, None], j[None, :]] > 0.5)
+
+    def samples(self, nodes: NDArray[np.bool_]) -> FloatArray:
+        """(n, 3) the known raw points nearest to ``nodes`` (rows, cols) of the surface's
+        lattice (within half a cell of one)."""
+        k = self.step
+        i = (np.arange(self.points.shape[0]) + k // 2) // k
+        j = (np.arange(self.points.shape[1]) + k // 2) // k
+        i, j = np.minimum(i, nodes.shape[0] - 1), np.minimum(j, nodes.shape[1] - 1)
+        pts: FloatArray = self.points[nodes[i[:, None], j[None, :]]].astype(np.float64)
+        return pts[np.isfinite(pts).all(axis=1)]
+
+
+def fit_plane_raw(
+    points: FloatArray, sensor: SensorModel | None, normal: FloatArray, offset: float
+) -> tuple[FloatArray, float]:
+    """A plane through raw depth points (n, 3) in their camera's frame, robustly,
+    starting from ``normal``, ``offset``.
+
+    Iteratively reweighted least squares of the distances to the plane: each point
+    weighted by its depth's variance under the ``sensor``'s noise model
+    (``1 / sigma(z)^2``: its error grows with z^2, so a far point counts less) times
+    Tukey's biweight of its distance over its error, the random one and the sensor's
+    slow one (no model: the distances' spread), so the points of another object beside
+    the plane drop out. A point's error lies along its ray, not across the plane, so
+    the scatter the noise adds along the rays (``sigma^2 r r^T`` for each, in
+    expectation) is taken out of the points' scatter before its least direction is
+    taken as the normal: left in, it tilts the plane of an oblique view towards the
+    rays by a degree or more."""
+    n, d = normal, offset
+    ok = np.isfinite(points).all(axis=1) & (points[:, 2] > 0)
+    p = points[ok]
+    if len(p) < 3:
+        return n, d
+    rays = p / np.linalg.norm(p, axis=1, keepdims=True)
+    if sensor is not None:
+        sigma = np.asarray(sensor.sigma_m(p[:, 2]))
+        scale = np.hypot(sigma, np.asarray(sensor.bias_m(p[:, 2])))
+        base = 1.0 / np.maximum(sigma, 1e-6) ** 2
+    else:
+        sigma, base = None, np.ones(len(p))
+    for _ in range(5):
+        r = p @ n - d
+        if sigma is None:
+            scale = np.full(len(p), max(1.4826 * float(np.median(np.abs(r))), 1e-9))
+        u = r / (TUKEY_C * scale)
+        w = base * np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+        if np.count_nonzero(w) < 3:
+            break
+        c = (w[:, None] * p).sum(axis=0) / w.sum()
+        q = p - c
+        scatter = (w[:, None] * q).T @ q
+        if sigma is not None:  # the noise's own scatter, along the rays
+            scatter -= ((w * sigma**2)[:, None] * rays).T @ rays
+        _, vecs = np.linalg.eigh(scatter)
+        n = vecs[:, 0] if vecs[2, 0] <= 0 else -vecs[:, 0]
+        d = float(n @ c)
+    return n, d
+
+
 def find_planes(
-    surface: Surface, settings: PlaneSettings | None = None, sensor: SensorModel | None = None
+    surface: Surface,
+    settings: PlaneSettings | None = None,
+    sensor: SensorModel | None = None,
+    raw: RawDepth | None = None,
 ) -> list[Plane]:
     """The large planar pieces of ``surface``'s lattice, largest first (``sensor``: the
-    noise model of the depth it came from, None for none)."""
+    noise model of the depth it came from, None for none). Given the ``raw`` depth the
+    lattice was estimated from, a piece's plane is fitted to the raw points under it
+    (:func:`fit_plane_raw`), not to its smoothed nodes."""
     s = settings or PlaneSettings()
     pts = surface.points.astype(np.float64)
     valid = np.asarray(np.isfinite(pts).all(axis=-1))
@@ -192,6 +295,8 @@ def find_planes(
             if inliers.sum() < 3:
                 break
             n, d = fit_plane(pts[inliers])
+        if raw is not None and inliers.sum() >= 3:
+            n, d = fit_plane_raw(raw.samples(inliers), sensor, n, d)
         with np.errstate(invalid="ignore"):
             inliers = free & (np.abs(pts @ n - d) < tol)
         labels, count = ndimage.label(inliers)
@@ -202,8 +307,11 @@ def find_planes(
         sizes[0] = 0
         piece = labels == int(np.argmax(sizes))
         free &= ~piece
-        rms = float(np.sqrt(np.mean((pts[piece] @ n - d) ** 2)))
-        bend = curvature_ratio(pts[piece], n, d)
+        # the piece is judged planar on its own nodes' plane (a raw plane a little
+        # off it would read as a bend)
+        nl, dl = (n, d) if raw is None else fit_plane(pts[piece])
+        rms = float(np.sqrt(np.mean((pts[piece] @ nl - dl) ** 2)))
+        bend = curvature_ratio(pts[piece], nl, dl)
         max_rms, flat_rms, bias_bend = s.max_rms_rel * z, 0.0, 0.0
         if sensor is not None:  # the piece's own depth sets the sensor's error
             zp = float(np.median(pts[piece][:, 2]))
@@ -212,7 +320,7 @@ def find_planes(
             flat_rms = s.step_flat * step  # this close to its plane: flat whatever its bend
             bias_bend = s.bias_bend * bias  # bending no more than the sensor's warp
         planar = (
-            rms <= flat_rms or bend <= s.max_bend or bend_m(pts[piece], n, d, bend) <= bias_bend
+            rms <= flat_rms or bend <= s.max_bend or bend_m(pts[piece], nl, dl, bend) <= bias_bend
         )
         if piece.sum() >= s.min_fraction * n_valid and rms <= max_rms and planar:
             planes.append(Plane(n, d, piece, rms, bend))
@@ -249,6 +357,7 @@ def snap_planes(
     settings: PlaneSettings | None = None,
     factor: int = 8,
     sensor: SensorModel | None = None,
+    raw: RawDepth | None = None,
 ) -> tuple[Surface, list[Plane]]:
     """``surface`` with its large planar pieces replaced by their planes; the pieces.
 
@@ -257,9 +366,10 @@ def snap_planes(
     a node whose lattice cell has all its corners on planes takes, of those planes,
     the one nearest the interpolated surface there (inside a wall corner the nearer
     wall, outside one the farther); other nodes are interpolated. Every node stays on
-    its projector ray. ``sensor``: the noise model of the depth (see :func:`find_planes`)."""
+    its projector ray. ``sensor``: the noise model of the depth, ``raw``: the depth before
+    smoothing (see :func:`find_planes`)."""
     s = settings or PlaneSettings()
-    planes = find_planes(surface, s, sensor)
+    planes = find_planes(surface, s, sensor, raw)
     if not planes:
         return surface, planes
     z_med = float(np.nanmedian(surface.points[..., 2]))
@@ -291,11 +401,21 @@ def snap_planes(
         & np.any(corner_labels >= 0, axis=0)
         & np.isfinite(z_interp)
     )
+    # a cell with only some corners on a plane (an object's edge runs through it):
+    # its nodes whose raw depth is on one of those planes take it, rather than the
+    # slope interpolated across the edge
+    edge = ~on_planes & np.any(corner_labels >= 0, axis=0) & np.isfinite(z_interp)
+    raw_tol: float | FloatArray = 0.0
+    if raw is not None and edge.any():
+        raw_tol = node_tolerance(s, sensor, raw.points[..., 2].astype(np.float64), z_med)
     z = z_interp.copy()
     best = np.full(shape, np.inf)
     for k, plane in enumerate(planes):
         zk = _plane_depth(rays, plane)
-        use = on_planes & np.any(corner_labels == k, axis=0) & np.isfinite(zk)
+        mine = np.any(corner_labels == k, axis=0) & np.isfinite(zk)
+        use = on_planes & mine
+        if raw is not None and np.any(edge & mine):
+            use |= edge & mine & raw.near_plane(plane, raw_tol, shape)
         with np.errstate(invalid="ignore"):
             gap = np.abs(zk - np.where(np.isfinite(z_interp), z_interp, zk))
         take = use & (gap < best)

@@ -51,6 +51,13 @@ class SurfaceEstimate:
     seen : float or None
         Fraction of lattice nodes the depth frame measured, before the pieces off the
         aim were dropped at depth jumps (None: as :attr:`coverage`).
+    raw : (fine rows, fine cols, 3) float array or None
+        The newest frame's depth before any smoothing across the lattice: points in
+        frame P on the rays of a lattice ``raw_step`` times finer (the surface's nodes
+        are every ``raw_step``-th), NaN where the frame has no depth there. Plane
+        snapping judges and fits planes on these (:mod:`~adaproj_edge.geometry.planes`).
+    raw_step : int
+        How much finer :attr:`raw` is than the surface's lattice.
     """
 
     surface: Surface
@@ -58,6 +65,8 @@ class SurfaceEstimate:
     filled: BoolArray
     frames: int = 1
     seen: float | None = None
+    raw: FloatArray | None = None
+    raw_step: int = 1
 
     @property
     def coverage(self) -> float:
@@ -108,6 +117,10 @@ class SurfaceEstimator:
         self._rays: dict[tuple[int, int], FloatArray] = {}
         # the last lattice's measured fraction, before the pieces off the aim went
         self.seen = 0.0
+        # the last frame's depth along the fine lattice's rays before smoothing, and
+        # how much finer that lattice is (see SurfaceEstimate.raw)
+        self.raw_depth: FloatArray | None = None
+        self.raw_step = 1
 
     def rays(self, shape: tuple[int, int]) -> FloatArray:
         """Projector rays (rows, cols, 3) of the lattice ``shape`` (read-only, kept)."""
@@ -140,7 +153,13 @@ class SurfaceEstimator:
             points, np.where(filled, 0.5, sup), filled, self.calibration, self.settings
         )
         surface = Surface(points.astype(np.float32), p, {"source": "depth"})
-        est = SurfaceEstimate(surface, conf, filled & np.isfinite(s), seen=self.seen)
+        raw = None
+        if self.raw_depth is not None:
+            r = self.raw_depth
+            raw = self.rays(r.shape) * r[..., None]
+        est = SurfaceEstimate(
+            surface, conf, filled & np.isfinite(s), seen=self.seen, raw=raw, raw_step=self.raw_step
+        )
         meta = {"source": "depth", **est.summary()}
         del meta["frames"]  # the estimate's own field, not the surface's
         return replace(est, surface=replace(surface, meta=meta))
@@ -169,6 +188,7 @@ class SurfaceEstimator:
         s, sup = intersect_images(self.rays(fine), images, cal, settings)
         s = reject_spikes(s, settings.spike_rel)
         raw = s[::k, ::k]
+        self.raw_depth, self.raw_step = s, k
         if np.isfinite(s).any():
             spacing = node_spacing_m(p, fine, float(np.nanmedian(s)))
             sigma = min(settings.smooth_m / spacing, settings.smooth_max_nodes)

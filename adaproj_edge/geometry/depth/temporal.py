@@ -82,5 +82,7 @@ class SurfaceFilter:
             (dirs * s[..., None]).astype(np.float32), est.surface.projector, dict(est.surface.meta)
         )
         filled = est.filled & ~np.isfinite(self._s) | (est.filled & (w_old == 0))
-        self.current = SurfaceEstimate(surface, c.astype(np.float32), filled, self._n)
+        self.current = SurfaceEstimate(
+            surface, c.astype(np.float32), filled, self._n, raw=est.raw, raw_step=est.raw_step
+        )
         return self.current
