@@ -51,6 +51,7 @@ import contextlib
 import io
 import json
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -290,6 +291,7 @@ class DeviceRun:
     map_xy: NDArray[np.float32] | None = None  # what the display draws (H, W, 2)
     error: str | None = None  # why nothing was projected
     kind: str = ""  # what was shown: content-aware, content-free, ...
+    telemetry: Telemetry | None = None  # the runtime's (run_runtime): stage times, updates
 
     @property
     def projected(self) -> bool:
@@ -343,11 +345,13 @@ def run_runtime(
     item: Item | None = None,
     settings: AppSettings | None = None,
     depth_frames: int | None = None,
+    stage_clock: Callable[[], float] | None = None,
 ) -> DeviceRun:
     """The device itself (:class:`~adaproj_edge.app.runtime.Runtime`, on a virtual clock)
     aimed at ``region``: booted, held still (the accelerometer reads gravity, the
     frame's "up"), the button pressed, then ``depth_frames`` copies of ``frame`` at
-    10 Hz (the capture's, by default). What it projects for this surface is the warp it
+    10 Hz (the capture's, by default); ``stage_clock`` times its stages (its telemetry's
+    default: wall-clock). What it projects for this surface is the warp it
     shows after the capture (the plain picture of the boot is "nothing"); its warp and
     depth faults are the error."""
     from adaproj_edge.app.content import mask_content_map
@@ -367,6 +371,9 @@ def run_runtime(
     clock = VirtualClock(1_000 * ms)
     p = cal.projector
     rt = Runtime(cal, MemoryDisplay(p.width, p.height), clock, [item], s, mask_content_map)
+    run.telemetry = rt.telemetry
+    if stage_clock is not None:
+        rt.telemetry.times.clock = stage_clock
     rt.boot()
     g = 9.81 * up_p  # the IMU is frame P here (R_P_I = I)
     accel = (float(g[0]), float(g[1]), float(g[2]))

@@ -4,6 +4,7 @@
     .venv/bin/python tools/bench_app.py                   # a simulated 12-s session
     .venv/bin/python tools/bench_app.py --scene corner    # ... in front of a wall corner
     .venv/bin/python tools/bench_app.py SESSION.mcap
+    .venv/bin/python tools/bench_app.py --real --cpu     # recorded real depth, CPU time
 
 Replays the session in the same run with the per-pose warp cache and warm starts
 (the product) and with both turned off, interleaved ``--repeat`` times; per stage the
@@ -19,6 +20,13 @@ content-free warp from the pose cache or solved, the content-aware refinement (f
 estimate (``surface``), the temporal average and the wall snapping (``planes``).
 Targets on one core: content-aware update <= 33 ms p95 at the default grid, cache hit
 <= 1 ms.
+
+``--cpu``: the stages' CPU time (``time.process_time``, one thread) instead of wall
+time: on a machine other work shares, wall times measure the others. ``--real``: instead
+of a session, the device (the runtime on a virtual clock, as ``tools/bench_real.py`` runs
+it) held still before each region of the recorded real frames of
+``tests/fixtures/real/``, ``--depth-frames`` copies of the frame each; the stages'
+samples of all regions pooled.
 """
 
 from __future__ import annotations
@@ -39,6 +47,7 @@ sys.path.insert(0, str(ROOT))
 
 from adaproj_edge.app.replay import ReplayOptions, replay_session  # noqa: E402
 from adaproj_edge.app.settings import AppSettings  # noqa: E402
+from adaproj_edge.app.telemetry import StageTimes  # noqa: E402
 from adaproj_edge.arrays import FloatArray  # noqa: E402
 from adaproj_edge.geometry.calibration import Calibration  # noqa: E402
 from adaproj_edge.session.records import TruthPose  # noqa: E402
@@ -114,6 +123,45 @@ def cache_hit_cost(repeats: int = 2000) -> tuple[float, float]:
     return float(np.median(a)), float(np.percentile(a, 95))
 
 
+def real_runs(flag: bool, depth_frames: int, cpu: bool) -> tuple[dict[str, Any], list[str]]:
+    """The device before every region of the real frames (caching and warm starts
+    ``flag``): the stages' samples of all regions pooled, in the shape of a replay's
+    summary (``timings_ms``, ``updates``, ``counters``), and what each region showed."""
+    from tests.realframes import load_frames, run_runtime
+
+    s = replace(AppSettings(), caching=flag, warm_start=flag)
+    pooled = StageTimes()
+    updates: list[dict[str, Any]] = []
+    counters: dict[str, int] = {}
+    shown = []
+    for frame in load_frames():
+        for region in frame.regions:
+            run = run_runtime(
+                frame,
+                region,
+                settings=s,
+                depth_frames=depth_frames,
+                stage_clock=time.process_time if cpu else None,
+            )
+            shown.append(f"{frame.name}/{region.name}: {run.kind or run.error}")
+            assert run.telemetry is not None
+            for stage, xs in run.telemetry.times.samples.items():
+                for x in xs:
+                    pooled.add(stage, x)
+            updates += run.telemetry.updates
+            for k, v in run.telemetry.counters.items():
+                counters[k] = counters.get(k, 0) + v
+    summary = {
+        "session": "real frames",
+        "timings_ms": pooled.summary(),
+        "updates": updates,
+        "counters": counters,
+        "motion_to_frame_ms": {"median": "-", "p95": "-", "n": 0},
+        "rss_mb": [0.0],
+    }
+    return summary, shown
+
+
 def main() -> int:
     apply_thread_policy(1)  # one thread: the figures are per core
     ap = argparse.ArgumentParser(
@@ -123,31 +171,47 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=12.0, help="length of the simulated session")
     ap.add_argument("--scene", default="cylinder-convex", help="surface of the simulated session")
     ap.add_argument("--repeat", type=int, default=2, help="runs of each (best one reported)")
+    ap.add_argument("--cpu", action="store_true", help="CPU time per stage, not wall time")
+    ap.add_argument("--real", action="store_true", help="the recorded real frames, no session")
+    ap.add_argument("--depth-frames", type=int, default=12, help="--real: depth frames per region")
     args = ap.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+    runs: dict[str, list[dict[str, Any]]] = {"cache+warm": [], "off": []}
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(args.session) if args.session else Path(tmp) / "bench.mcap"
-        if not args.session:
+        if args.real:
+            shown: list[str] = []
+            for k in range(args.repeat):
+                order = (("cache+warm", True), ("off", False))
+                for label, flag in order if k % 2 == 0 else order[::-1]:
+                    t0 = time.perf_counter()
+                    r, shown = real_runs(flag, args.depth_frames, args.cpu)
+                    r["wall_s"] = time.perf_counter() - t0
+                    runs[label].append(r)
+            print("shown: " + "; ".join(shown))
+        elif not args.session:
             settings = SimulationSettings(
                 seconds=args.seconds, depth_fps=15.0, seed=5, presses=(0.2,)
             )
             simulate_session(Scene.load(args.scene), path, settings=settings)
-        runs: dict[str, list[dict[str, Any]]] = {"cache+warm": [], "off": []}
-        # a replay to warm up (imports, allocator, caches of the OS), not reported
-        replay_session(path, None, ReplayOptions(score=False))
-        for k in range(args.repeat):  # interleaved, so a busy spell hits both
+        if not args.real:
+            # a replay to warm up (imports, allocator, caches of the OS), not reported
+            replay_session(path, None, ReplayOptions(score=False))
+        for k in range(0 if args.real else args.repeat):  # interleaved: a busy spell hits both
             order = (("cache+warm", True), ("off", False))
             for label, flag in order if k % 2 == 0 else order[::-1]:
                 s = replace(AppSettings(), caching=flag, warm_start=flag)
+                opts = ReplayOptions(s, score=False, cpu_times=args.cpu)
                 t0 = time.perf_counter()
-                r = replay_session(path, None, ReplayOptions(s, score=False))
+                r = replay_session(path, None, opts)
                 r["wall_s"] = time.perf_counter() - t0
                 runs[label].append(r)
     on, off = runs["cache+warm"], runs["off"]
+    length = "" if args.real else f": {on[0]['duration_s']:.1f} s"
     print(
-        f"session {on[0]['session']}: {on[0]['duration_s']:.1f} s; one core; ms median / p95 "
-        f"(count), best of {args.repeat} interleaved runs"
+        f"session {on[0]['session']}{length}; one core; {'CPU' if args.cpu else 'wall'} ms "
+        f"median / p95 (count), best of {args.repeat} interleaved runs"
     )
     print(f"{'stage':22s} {'cache+warm':>24s}   {'off':>24s}")
     for st in STAGES:

@@ -32,6 +32,7 @@ import logging
 import os
 import shutil
 import tempfile
+import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -103,6 +104,9 @@ class ReplayOptions:
     stabilise: bool = True  # False: the display loop shows frames as rendered (margin 0)
     # replaces the session's calibration (its depth model stays the session's)
     calibration: Calibration | None = None
+    # stage times in CPU seconds of the process (``time.process_time``) instead of
+    # wall-clock: benchmarks on a machine other work shares
+    cpu_times: bool = False
 
     def app_settings(self) -> AppSettings:
         """The runtime's settings for this replay."""
@@ -194,6 +198,8 @@ def _replay(
     settings = options.app_settings()
     display = MemoryDisplay(cal.projector.width, cal.projector.height, replay.clock)
     rt = Runtime(cal, display, replay.clock, [builtin_item()], settings, mask_content_map, frames)
+    if options.cpu_times:
+        rt.telemetry.times.clock = time.process_time
     link = LinkReplay(store, rt)
     scorer = None
     handheld = None

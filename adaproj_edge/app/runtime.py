@@ -72,7 +72,6 @@ from __future__ import annotations
 
 import enum
 import logging
-import time
 from pathlib import Path
 from typing import Any
 
@@ -318,7 +317,7 @@ class Runtime:
     def on_depth(self, frame: DepthFrame) -> None:
         """One depth frame: estimate the surface when it is time, and update the warp
         as the state and the motion call for."""
-        t_start = time.perf_counter()
+        t_start = self.telemetry.times.now()
         now = self._now()
         self._last_depth_ns = now
         self._clear("camera")
@@ -512,7 +511,7 @@ class Runtime:
     def _show_warp(
         self, surface: Surface, frames: int, refine: bool, reason: str, t_start: float | None
     ) -> None:
-        t_update = time.perf_counter()
+        t_update = self.telemetry.times.now()
         t0 = t_start if t_start is not None else t_update
         item = self.item
         if self.plain or item.settings.mode == "standard":
@@ -543,7 +542,7 @@ class Runtime:
         self.output.set(warp, maps, gain)
         self._shown_kind, self._entry = kind, entry
         frame = self.output.render(self._image(), reason, kind, notify=False)
-        t_end = time.perf_counter()
+        t_end = self.telemetry.times.now()
         elapsed = t_end - t0
         # the update itself (surface -> frame shown), and with the depth frame's surface
         # estimate before it (depth frame -> frame shown)

@@ -2,7 +2,8 @@
 (events, states, updates, motion-to-frame and motion-to-photon latencies) for status,
 replays and benchmarks.
 
-Stage times are wall-clock (``time.perf_counter``) and only reported: no decision
+Stage times are wall-clock (``time.perf_counter``; benchmarks on a loaded machine read
+the process's CPU time instead, :attr:`StageTimes.clock`) and only reported: no decision
 depends on them, so a replay makes the same decisions whatever the machine's speed.
 """
 
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Any
@@ -45,10 +47,17 @@ COUNTERS = (
 
 @dataclass
 class StageTimes:
-    """Wall-clock seconds per stage: the last ``keep`` samples of each stage."""
+    """Seconds per stage: the last ``keep`` samples of each stage, read on ``clock``
+    (wall-clock by default; ``time.process_time``: CPU seconds, what a stage costs on a
+    core of its own whatever else runs on the machine)."""
 
     keep: int = 20000
     samples: dict[str, deque[float]] = field(default_factory=dict)
+    clock: Callable[[], float] = time.perf_counter
+
+    def now(self) -> float:
+        """The stage clock's reading (seconds)."""
+        return self.clock()
 
     def add(self, stage: str, seconds: float) -> None:
         """Record one sample of ``stage``."""
@@ -81,7 +90,7 @@ class Timer:
         self.t0 = 0.0
 
     def __enter__(self) -> None:
-        self.t0 = time.perf_counter()
+        self.t0 = self.times.now()
 
     def __exit__(
         self,
@@ -89,7 +98,7 @@ class Timer:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
-        self.times.add(self.stage, time.perf_counter() - self.t0)
+        self.times.add(self.stage, self.times.now() - self.t0)
 
 
 class Telemetry:

@@ -28,7 +28,6 @@ off that surface, the geometric one, and the reason is logged.
 from __future__ import annotations
 
 import logging
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -182,7 +181,7 @@ class WarpSource:
         up = np.asarray(settings.up, dtype=np.float64)
         key = pose_key(orientation, depth, s.orientation_bin_rad, s.depth_bin_m, up, s.up_bin_rad)
         key += content_size
-        t_lookup = time.perf_counter()
+        t_lookup = self.telemetry.times.now()
 
         def fits(e: PoseEntry) -> bool:
             # the same "up", and made for content of this size: an entry found by its
@@ -196,7 +195,8 @@ class WarpSource:
             else None
         )
         self.telemetry.times.add(
-            "cache_hit" if entry is not None else "cache_lookup", time.perf_counter() - t_lookup
+            "cache_hit" if entry is not None else "cache_lookup",
+            self.telemetry.times.now() - t_lookup,
         )
         hit = entry is not None
         if entry is None and self.caching:

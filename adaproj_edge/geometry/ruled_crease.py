@@ -88,23 +88,31 @@ def side_patch(
     )
     q = (points - origin) @ frame.T
     u, w, y = q[:, 0], q[:, 1], q[:, 2]
-    quad = np.stack([np.ones_like(u), u, w, u * u, u * w, w * w], axis=1)
+    # (filled column by column: a few calls fewer than np.stack, the same array; this
+    # runs for every crease candidate tried, tens per mesh)
+    quad = np.empty((y.size, 6))
+    quad[:, 0], quad[:, 1], quad[:, 2] = 1.0, u, w
+    quad[:, 3], quad[:, 4], quad[:, 5] = u * u, u * w, w * w
     for cols, least in ((3, 3), (6, MIN_BENT_POINTS)):
         basis = quad[:, :cols]
         use = np.ones(y.size, dtype=bool)
+        kept = y.size
         for _ in range(FIT_ROUNDS):
-            if use.sum() < least:
+            if kept < least:
                 break
             coef = _least_squares(basis[use], y[use])
             if coef is None:
                 break
             off = np.abs(basis @ coef - y)
-            if np.all(off[use] <= tol):
+            # (the largest is within tol exactly when all are: NaN fails both)
+            worst = float(off[use].max())
+            if worst <= tol:
                 return SidePatch(origin, frame, np.concatenate([coef, np.zeros(6 - cols)]))
             # the points farthest off left out (a few far ones, from a triangle that
             # reaches across the crease, pull the first fit off the others too)
-            use &= off <= max(tol, 0.5 * float(off[use].max()))
-            if y.size - use.sum() > OUTLIERS * y.size:
+            use &= off <= max(tol, 0.5 * worst)
+            kept = int(np.count_nonzero(use))
+            if y.size - kept > OUTLIERS * y.size:
                 break
     return None
 
@@ -113,7 +121,7 @@ def _least_squares(a: FloatArray, y: FloatArray) -> FloatArray | None:
     """The least-squares solution of ``a x = y`` by its normal equations (columns
     scaled to unit size first), None where ``a`` has not full rank."""
     scale = np.sqrt(np.einsum("ij,ij->j", a, a))
-    if not np.all(scale > 0):
+    if not (scale > 0).all():
         return None
     b = a / scale
     g = b.T @ b
@@ -243,6 +251,14 @@ def crease_planes(
     return na, at, nb, at.copy()
 
 
+def _unique(ids: IntArray) -> IntArray:
+    """``np.unique`` of a few tens of indices (its calls cost more than the sort)."""
+    out = np.sort(ids)
+    if out.size > 1:
+        out = out[np.concatenate(([True], out[1:] != out[:-1]))]
+    return out
+
+
 def ruled_planes(
     retry: IntArray,
     cand: IntArray,
@@ -283,7 +299,7 @@ def ruled_planes(
         corner_of = tris[use].ravel()
         order = np.argsort(corner_of, kind="stable")
         starts = np.searchsorted(corner_of[order], np.arange(tris.max() + 2))
-        tables.append((use[order // 3], starts))
+        tables.append((use[order // 3], starts.tolist()))  # (read an entry at a time)
     # (the smooth triangles that are no crease candidates, and their centres)
     pool = np.flatnonzero(settled[0] | settled[1])
     pool_at = tri_pts[pool].mean(axis=1)
@@ -320,15 +336,16 @@ def ruled_planes(
             (nb[c], na[c], side_b),
         ):
             near = []
-            for v in tris[t, ks]:  # a vertex's flat triangles where it has any, ...
+            for v in tris[t, ks].tolist():  # a vertex's flat triangles where it has any, ...
                 for table, starts in tables:
                     if starts[v + 1] > starts[v]:
                         near.append(table[starts[v] : starts[v + 1]])
                         break
             if wide:
                 near = [within]
-            nbr = np.unique(np.concatenate(near)) if near else np.zeros(0, dtype=np.intp)
-            nbr = nbr[np.abs(normals[:, nbr].T @ n_s) > np.abs(normals[:, nbr].T @ n_o)]
+            nbr = _unique(np.concatenate(near)) if near else np.zeros(0, dtype=np.intp)
+            nbr_n = normals[:, nbr].T
+            nbr = nbr[np.abs(nbr_n @ n_s) > np.abs(nbr_n @ n_o)]
             cloud = np.concatenate(
                 [
                     tri_pts[t, ks],
