@@ -76,6 +76,7 @@ Mode = Literal["content", "conformal", "standard"]
 MODES: tuple[Mode, ...] = ("content", "conformal", "standard")
 Alternation = Literal["ours", "paper"]
 ALTERNATIONS: tuple[Alternation, ...] = ("ours", "paper")
+FOLDS = "the warp folds over; the surface is too irregular for this grid"
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,12 @@ def content_aware(
     by ``placement``; None when nothing or everything salient shows (then the
     content-free warp E' is the answer).
 
+    What shows is read through ``placement``, which says nothing where the conformal
+    warp folds over (the rectangle inscribed in a flattening that overlaps itself may
+    hold one vertex, salient or not by chance): there "nothing salient shows" is not a
+    verdict, and the step fails on the fold (raises :class:`WarpError`) as the
+    alternation from that start would.
+
     The alternation (:func:`refine`) starts from the conformal warp scaled to the
     salient region's size on the surface (its fixed point does not depend on the start;
     on a developable surface that start is the answer), and
@@ -160,6 +167,8 @@ def content_aware(
     """
     w = content_map.weights(placement.apply(v_conformal))
     if w.min() == w.max():
+        if not unfolded(v_conformal, mesh.tris):
+            raise WarpError(FOLDS)
         return None
     e = mesh.edges
     salient = (w[e[:, 0]] + w[e[:, 1]]) > 0
@@ -283,7 +292,7 @@ def make_warp(
     :class:`WarpError` if the mesh folds over. For callers that run the solves
     themselves (the device runtime keeps solver state between updates)."""
     if not unfolded(v, mesh.tris):
-        raise WarpError("the warp folds over; the surface is too irregular for this grid")
+        raise WarpError(FOLDS)
     rows, cols = mesh.grid.rows + 1, mesh.grid.cols + 1
     image_xy = np.full((rows * cols, 2), np.nan)
     image_xy[mesh.verts] = placement.apply(v)
