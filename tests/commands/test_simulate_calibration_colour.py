@@ -14,6 +14,7 @@ import pytest
 from adaproj_edge.cli import main
 from adaproj_edge.hal.board import Board
 from adaproj_edge.procam.photometric import Measured
+from adaproj_edge.render.reflectance import Response
 from adaproj_edge.session.scene_render import CameraOptics
 from tests.procam.rigs import true_rig
 
@@ -36,21 +37,12 @@ def albedo_png(path: Path) -> np.ndarray:
     return np.asarray(np.rint(255 * albedo) / 255, np.float64)
 
 
-@pytest.mark.slow
-def test_a_tinted_textured_corner_in_a_lit_room_is_measured(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    albedo = albedo_png(tmp_path / "albedo.png")
-    rig = tmp_path / "rig.json"
-    rig.write_text(true_rig(Board.load("rpi5-oakd").calibration(), +1, 7).to_json())
-    session, out = tmp_path / "s.mcap", tmp_path / "unit.toml"
-    args = ["simulate-calibration", "--surface", "corner", "--rig", str(rig), "--poses", "3"]
-    args += ["--seed", "7", "--camera", "256x160", "--photometric", "--out", str(session)]
-    assert main([*args, "--albedo", str(tmp_path / "albedo.png"), "--ambient", str(AMBIENT)]) == 0
-    # the geometric calibration still passes on the textured surface
-    assert main(["calibrate", "--replay", str(session), "--out", str(out)]) == 0
-    assert "pose 1: the surface's colour and the room's light measured" in capsys.readouterr().out
-    r = Measured.load(out.with_name("unit.photometric.npz")).response
+def assert_paint_measured(
+    r: Response, albedo: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Assert that ``r`` measured the checks of :func:`albedo_png`: their tints and
+    their brightness against their neighbours; the light seen of each primary (h, w,
+    3), the paint per cell and the checks' insides."""
     h, w = r.valid.shape
     truth = cv2.resize(albedo, (w, h), interpolation=cv2.INTER_AREA)
     seen = np.diagonal(r.mix, axis1=-2, axis2=-1).astype(np.float64)  # per primary, less black
@@ -97,9 +89,28 @@ def test_a_tinted_textured_corner_in_a_lit_room_is_measured(
                 errs.append(np.log(got_ratio / true_ratio))
     assert len(errs) > 30
     assert np.median(np.abs(errs)) < 0.06 and np.quantile(np.abs(errs), 0.8) < 0.1
+    return seen, truth, inside
+
+
+@pytest.mark.slow
+def test_a_tinted_textured_corner_in_a_lit_room_is_measured(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    albedo = albedo_png(tmp_path / "albedo.png")
+    rig = tmp_path / "rig.json"
+    rig.write_text(true_rig(Board.load("rpi5-oakd").calibration(), +1, 7).to_json())
+    session, out = tmp_path / "s.mcap", tmp_path / "unit.toml"
+    args = ["simulate-calibration", "--surface", "corner", "--rig", str(rig), "--poses", "3"]
+    args += ["--seed", "7", "--camera", "256x160", "--photometric", "--out", str(session)]
+    assert main([*args, "--albedo", str(tmp_path / "albedo.png"), "--ambient", str(AMBIENT)]) == 0
+    # the geometric calibration still passes on the textured surface
+    assert main(["calibrate", "--replay", str(session), "--out", str(out)]) == 0
+    assert "pose 1: the surface's colour and the room's light measured" in capsys.readouterr().out
+    r = Measured.load(out.with_name("unit.photometric.npz")).response
+    seen, truth, inside = assert_paint_measured(r, albedo)
     # 3. the room's light: the black capture less the projector's black (its share of
     # the white seen), over the light a white surface returns at the reference distance
-    cam = Board.load("rpi5-oakd").camera
+    o, cam = CameraOptics(), Board.load("rpi5-oakd").camera
     gain = cam.exposure_us / o.reference_exposure_us * cam.iso / o.reference_iso
     bl = o.black_level
     room = (r.ambient * (1 - bl) - bl * seen) / (truth * gain * (1 - bl) * o.white_level)
