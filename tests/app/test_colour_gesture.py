@@ -82,9 +82,10 @@ def _measure(tmp_path: Path, faults: SimFaults | None = None, move: bool = False
         poses=1, seed=3, camera=cam, albedo=albedo.astype(np.float32), faults=faults or SimFaults()
     )
     sim = sim_rig(Scene.load("corner"), CAL, settings)
-    if move:  # the user steps 10 cm towards the wall as the captures begin
+    if move:  # the user steps 5 cm towards the wall in 0.2 s during the captures
+        sim.world.path = replace(sim.world.path, move_s=0.2)
         here = sim.world.path.current().copy()
-        sim.world.path.moves.append((0.1, here, here + np.r_[0, 0, 0.1, 0, 0, 0]))
+        sim.world.path.moves.append((0.4, here, here + np.r_[0, 0, 0.05, 0, 0, 0]))
     console = _Console()
     out = tmp_path / "unit.photometric.npz"
     clock = sim.world.clock
