@@ -8,6 +8,13 @@ projector (the device has no other screen) and in the journal, and writes the
 calibration file ``adaproj run`` reads at start (only a good or acceptable one, never
 over a better one). The runtime then goes on with the new calibration
 (:meth:`~adaproj_edge.app.runtime.Runtime.recalibrate`).
+
+The tap-then-hold gesture hands it the board for :func:`measure_colour_device`: the
+surface's colour measured again from five frames
+(:mod:`adaproj_edge.procam.colour_capture`), written beside the calibration
+(``OUT.photometric.npz``, atomically) and given to the runtime
+(:meth:`~adaproj_edge.app.runtime.Runtime.remeasured`); a refused capture writes
+nothing and the measurement in use stays.
 """
 
 from __future__ import annotations
@@ -24,8 +31,10 @@ from adaproj_edge.hal.clock import Clock
 from adaproj_edge.hal.display import Display
 from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
 from adaproj_edge.hal.polled_imu import PolledImu
+from adaproj_edge.procam.colour_capture import measure_colour
 from adaproj_edge.procam.outputs import calibrate
-from adaproj_edge.procam.procedure import Devices, LiveShow
+from adaproj_edge.procam.photometric import Measured
+from adaproj_edge.procam.procedure import Devices, Listener, LiveShow
 from adaproj_edge.render.sheet import text_page
 from adaproj_edge.resources import DEVICE_CALIBRATION
 from adaproj_edge.session.codec import Record
@@ -129,3 +138,62 @@ def calibrate_device(
     except AdaprojError as e:  # written a moment ago: the storage failed
         log.error("the calibration just written cannot be read: %s", e)
         return None, str(e)
+
+
+def measure_colour_on(
+    show: LiveShow,
+    rig: OakRig,
+    clock: Clock,
+    board: Board,
+    calibration: Calibration,
+    out: Path,
+    console: Listener,
+) -> tuple[Measured | None, str]:
+    """Capture and measure the surface's colour with open devices and write it to
+    ``out``; None and the reason when refused (nothing written)."""
+    try:
+        measured = measure_colour(
+            show, rig.camera, rig.depth, clock, board.camera, calibration, console
+        )
+        measured.save(out)
+    except AdaprojError as e:
+        message = f"the surface's colour was not measured: {e}"
+        log.warning("%s", message)
+        console.say("refused", message)
+        return None, message
+    message = "the surface's colour and the room's light measured"
+    console.say("done", message)
+    return measured, message
+
+
+def measure_colour_device(
+    board: Board, display: Display, clock: Clock, calibration: Calibration, out: Path
+) -> tuple[Measured | None, str]:
+    """The tap-then-hold gesture: open the board's camera and depth, measure the
+    surface's colour (:func:`measure_colour_on`), close them.
+
+    Returns
+    -------
+    measured : Measured or None
+        The new measurement (written to ``out``), None when refused.
+    message : str
+        What was done, or why not.
+    """
+    w, h = calibration.projector.width, calibration.projector.height
+    console = ProjectedConsole(display, (w, h))
+    try:
+        rig = OakRig(board.depth, board.camera, clock)
+    except AdaprojError as e:
+        message = f"the surface's colour was not measured: {e}"
+        log.error("%s", message)
+        console.say("failed", message)
+        return None, message
+    try:
+        cal = calibration.with_depth(rig.depth.model)
+        show = LiveShow(display, clock, console)
+        return measure_colour_on(show, rig, clock, board, cal, out, console)
+    finally:
+        try:
+            rig.close()
+        except AdaprojError as e:
+            log.warning("closing after the colour captures: %s", e)

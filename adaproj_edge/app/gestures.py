@@ -1,4 +1,4 @@
-"""One button, five gestures.
+"""One button, six gestures.
 
 - **press** (short, alone): reported once the double-press window has passed;
 - **double** press: the second press within ``double_press_s`` of the first release;
@@ -6,7 +6,9 @@
 - **tap-hold**: a short press, then within ``double_press_s`` of its release a second
   press held ``long_press_s`` or more (reported on release; pauses or resumes a clip);
 - **hold**: held ``hold_s`` or more (reported while still held, as soon as the time is
-  up, so the user knows to let go; the release that follows is no gesture).
+  up, so the user knows to let go; the release that follows is no gesture);
+- **tap-hold-on** (``colour``): a short press, then within ``double_press_s`` of its
+  release a second press held ``hold_s`` or more (reported like the hold).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from typing import Literal
 
 from adaproj_edge.hal.button import ButtonEvent
 
-Gesture = Literal["press", "double", "long", "tap_hold", "hold"]
+Gesture = Literal["press", "double", "long", "tap_hold", "hold", "colour"]
 
 
 class Gestures:
@@ -66,17 +68,20 @@ class Gestures:
         return None
 
     def tick(self, now_ns: int) -> Gesture | None:
-        """Return "hold" once the button has been down ``hold_s``; "press" once a single
-        press has waited out the double-press window (not while a second press that
-        began inside the window is still down: it may become a double or a tap-hold)."""
+        """Return "hold" once the button has been down ``hold_s`` ("colour" when a short
+        press came within the double-press window before); "press" once a single press
+        has waited out the double-press window (not while a second press that began
+        inside the window is still down: it may become a double or a tap-hold)."""
         if (
             self._press_ns is not None
             and not self._held
             and now_ns - self._press_ns >= self.hold_ns
         ):
+            single = self._single_ns
+            tapped = single is not None and self._press_ns - single <= self.double_ns
             self._held = True
             self._single_ns = None
-            return "hold"
+            return "colour" if tapped else "hold"
         single, down = self._single_ns, self._press_ns
         if single is not None and down is not None and down - single <= self.double_ns:
             return None  # a second press is down: decided on its release

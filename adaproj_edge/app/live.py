@@ -46,6 +46,7 @@ from adaproj_edge.hal.lsm6dsox import Lsm6dsox, open_i2c
 from adaproj_edge.hal.serial import PySerialPort, SerialPort
 from adaproj_edge.link.server import Server, serve
 from adaproj_edge.link.store import ContentStore
+from adaproj_edge.procam.photometric import Measured
 from adaproj_edge.render.photometry import PhotometrySettings
 from adaproj_edge.session.recorder import SessionTap
 from adaproj_edge.session.writer import SessionWriter
@@ -54,6 +55,7 @@ log = logging.getLogger(__name__)
 
 Reader = Callable[[], Input | None]
 Calibrate = Callable[[], tuple[Calibration | None, str]]
+MeasureColour = Callable[[], tuple[Measured | None, str]]
 
 
 class _Closable(Protocol):
@@ -143,6 +145,7 @@ class Device:
     tap: SessionTap | None = None
     calibrate: Calibrate | None = field(default=None)
     refresh: bool = False
+    measure_colour: MeasureColour | None = field(default=None)
 
 
 class _Readers:
@@ -219,6 +222,23 @@ def _calibrate(device: Device, readers: _Readers) -> None:
         readers.start()
 
 
+def _measure_colour(device: Device, readers: _Readers) -> None:
+    """The tap-then-hold gesture: readers stopped, the colour captured and measured,
+    the runtime told (on a refusal it keeps the measurement it has)."""
+    runtime = device.runtime
+    if device.measure_colour is None:
+        runtime.remeasured(None, "no camera on this device")
+        return
+    log.info("colour measurement asked for: stopping the depth camera and IMU readers")
+    readers.pause()
+    try:
+        measured, message = device.measure_colour()
+        log.info("surface colour: %s", message)
+        runtime.remeasured(measured, message)
+    finally:
+        readers.start()
+
+
 def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float = 1.0) -> None:
     """Boot, start a thread per source and one for the link, and feed the runtime on
     this thread until ``stop`` is set (or an interrupt); the recording is closed last."""
@@ -250,6 +270,8 @@ def run_loop(device: Device, stop: threading.Event | None = None, retry_s: float
                 feed(runtime, item)
             if runtime.calibration_wanted:
                 _calibrate(device, readers)
+            if runtime.colour_wanted:
+                _measure_colour(device, readers)
     finally:
         stop.set()
         readers.pause(timeout_s=2.0)  # the readers close their devices
@@ -327,6 +349,13 @@ def run_device(
 
         return calibrate_device(board, display, clock, runtime.calibration)
 
+    def measure_colour() -> tuple[Measured | None, str]:
+        from adaproj_edge.app.calibration_run import measure_colour_device
+        from adaproj_edge.procam.photometric import photometric_path
+
+        out = photometric_path(board.calibration_path)
+        return measure_colour_device(board, display, clock, runtime.calibration, out)
+
     sources = [
         _Source("imu", open_imu, imu_held.close),
         _Source("depth", open_depth, depth_held.close),
@@ -345,7 +374,7 @@ def run_device(
             meta = {"source": "device", "board": board.name, "command": "run"}
             tap = SessionTap(SessionWriter(record, calibration, meta, clock.now_ns()), clock)
             log.info("recording to %s", record)
-        device = Device(runtime, server, port, sources, clock, tap, calibrate, refresh=True)
+        device = Device(runtime, server, port, sources, clock, tap, calibrate, True, measure_colour)
         run_loop(device, retry_s=retry_s)
     finally:
         display.close()

@@ -249,6 +249,8 @@ def _replay(
             link.feed(rec)
         if rt.calibration_wanted:  # the hold gesture: no devices to hand over here
             rt.recalibrate(None, "a replay has no devices to calibrate")
+        if rt.colour_wanted:  # the tap-then-hold gesture: no camera here either
+            rt.remeasured(None, "a replay has no camera to measure the colour with")
         if n_records % 200 == 0:
             rss.append(round(rss_mb(), 1))
     if t0 is None:

@@ -17,6 +17,10 @@ Gestures (one button, :mod:`adaproj_edge.app.gestures`)
   hands the devices to the calibration procedure and gives the result back through
   :meth:`Runtime.recalibrate`. A replay has no devices to hand over: the request is
   logged as an event and dropped.
+- **tap, then hold** (a short press, then a second one held 5 s): measure the
+  surface's colour again (:attr:`Runtime.colour_wanted`; the device loop shows black,
+  white and the primaries, measures and gives the result back through
+  :meth:`Runtime.remeasured`; a replay drops the request as it does the hold's).
 
 While projecting
 ----------------
@@ -110,6 +114,7 @@ from adaproj_edge.hal.imu import ImuSample
 from adaproj_edge.link.device import Content
 from adaproj_edge.motion.tracker import MotionTracker
 from adaproj_edge.motion.upright import Upright, UprightSettings
+from adaproj_edge.procam.photometric import Measured
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.fallback import chain_of
 from adaproj_edge.warp.placement import DEFAULT_UP
@@ -185,6 +190,7 @@ class Runtime:
         self._motion_ns: int | None = None
         self.inbox = Inbox()
         self.calibration_wanted = False  # the hold gesture asks the device loop for it
+        self.colour_wanted = False  # the tap-then-hold gesture asks the device loop for it
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -400,6 +406,21 @@ class Runtime:
                 self._event("clip", item=self.item.name, paused=paused)
         elif kind == "hold":
             self.calibration_wanted = True
+        elif kind == "colour":
+            self.colour_wanted = True
+
+    def remeasured(self, measured: Measured | None, reason: str) -> None:
+        """Go on after the colour captures: with ``measured`` (a new measurement of the
+        surface's colour; ``None`` keeps the one in use, or the geometric gain alone),
+        from idle, the content shown plainly (the captures took the projector)."""
+        self.colour_wanted = False
+        if measured is not None:
+            s, t, cal = self.settings, self.telemetry, self.calibration
+            self.warps = WarpSource(cal.projector, s, t, cal.vignetting)  # no stale gains
+            self.warps.measured = measured
+        self._event("colour_measured", changed=measured is not None, reason=reason)
+        self._set_state(State.IDLE)
+        self._show_plain("colour measured")
 
     def recalibrate(self, calibration: Calibration | None, reason: str) -> None:
         """Go on after a calibration run: with ``calibration`` (a new one was written;

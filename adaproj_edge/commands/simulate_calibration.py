@@ -8,6 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from adaproj_edge.commands.simulate import ambient_arg
 from adaproj_edge.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -50,6 +51,26 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "--camera", default="640x400", metavar="WxH", help="camera frame size (default 640x400)"
     )
     p.add_argument("--fault", choices=sorted(FAULTS), default=None, help="simulate bad input")
+    p.add_argument(
+        "--photometric",
+        action="store_true",
+        help="the procedure also captures the projector's primaries at the first pose, as "
+        "`adaproj calibrate --photometric` does (its replay measures the surface's colour)",
+    )
+    p.add_argument(
+        "--albedo",
+        type=Path,
+        help="PNG of the surface's colour (reflectance) as the true projector sees it from "
+        "the first pose, resized to its frame and painted onto the surface (default: a "
+        "grey procedural texture)",
+    )
+    p.add_argument(
+        "--ambient",
+        type=ambient_arg,
+        default=None,
+        help="the room's light, a fraction of the projector's white on a frontal surface "
+        "1.5 m away (default: the simulator's, about 0.13)",
+    )
     p.set_defaults(run=run)
 
 
@@ -63,8 +84,10 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from adaproj_edge.fileio import read_image
     from adaproj_edge.geometry.calibration import Calibration
     from adaproj_edge.hal.board import Board
+    from adaproj_edge.render.surface_light import albedo_from_image
     from adaproj_edge.session.calibration_sim import (
         CalibrationSimSettings,
         SimFaults,
@@ -76,11 +99,21 @@ def run(args: argparse.Namespace) -> int:
     nominal = board.calibration()
     truth = Calibration.load(args.rig)
     w, h = parse_size(args.camera)
+    albedo = None
+    if args.albedo is not None:
+        p = truth.projector
+        albedo = albedo_from_image(read_image(args.albedo), (p.width, p.height))
+    optics = CalibrationSimSettings().optics
+    if args.ambient is not None:
+        optics = replace(optics, ambient=args.ambient * optics.white_level)
     settings = CalibrationSimSettings(
         poses=args.poses,
         seed=args.seed,
         camera=replace(board.camera, width=w, height=h),
         faults=SimFaults(**FAULTS[args.fault]) if args.fault else SimFaults(),
+        optics=optics,
+        photometric=args.photometric,
+        albedo=albedo,
     )
 
     def tell(event: str, message: str) -> None:

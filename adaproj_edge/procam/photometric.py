@@ -27,12 +27,13 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Protocol
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from adaproj_edge.arrays import FloatArray, Image
+from adaproj_edge.arrays import BoolArray, FloatArray, Image
 from adaproj_edge.errors import AdaprojError, InputError
 from adaproj_edge.fileio import atomic_savez, load_npz
 from adaproj_edge.geometry.surface import Surface
@@ -62,9 +63,35 @@ def primary_frame(index: int, size: tuple[int, int]) -> Image:
     return np.broadcast_to(np.asarray(PRIMARY_FRAMES[index][1], np.uint8), (h, w, 3))
 
 
+class CellMap(Protocol):
+    """Where each camera pixel lands in the projector: a Gray-code
+    :class:`~adaproj_edge.procam.graycode.Decoded`, or a map through the calibration
+    (:class:`~adaproj_edge.procam.colour_capture.GeometricMap`)."""
+
+    @property
+    def valid(self) -> BoolArray:
+        """(h, w): mapped."""
+
+    @property
+    def x(self) -> FloatArray:
+        """(h, w) projector x, NaN where not mapped."""
+
+    @property
+    def y(self) -> FloatArray:
+        """(h, w) projector y, NaN where not mapped."""
+
+    @property
+    def cell_x(self) -> float:
+        """Projector pixels along x a camera pixel stands for."""
+
+    @property
+    def cell_y(self) -> float:
+        """Projector pixels along y a camera pixel stands for."""
+
+
 def to_projector(
     image: NDArray[np.uint8] | FloatArray,
-    decoded: Decoded,
+    decoded: CellMap,
     projector_size: tuple[int, int],
     scale: int = 2,
 ) -> FloatArray:
@@ -107,7 +134,7 @@ def measure_pose(
     black: Image,
     white: Image,
     primaries: Sequence[Image],
-    decoded: Decoded,
+    decoded: CellMap,
     projector_size: tuple[int, int],
     scale: int = 2,
     weights: Sequence[float] = PRIMARY_WEIGHTS,

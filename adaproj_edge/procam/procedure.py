@@ -357,13 +357,13 @@ def _capture_one(
             depth.append(f)
             listener.record(f)
     frames = [
-        _capture_frame(dev, cam, listener, pose, p.index, p.name, patterns.frame(p.index))
+        capture_frame(dev, cam, listener, pose, p.index, p.name, patterns.frame(p.index))
         for p in patterns.patterns
     ]
     return frames, depth
 
 
-def _capture_frame(
+def capture_frame(
     dev: Devices, cam: CameraSettings, listener: Listener, pose: int, index: int, name: str,
     frame: Image,
 ) -> CameraFrame:  # fmt: skip
@@ -393,7 +393,7 @@ def _photometric(
     ``first``) and the surface's response measured with its black and white; None and
     the reason when the captures are refused (the calibration goes on without)."""
     prim = [
-        _capture_frame(dev, cam, listener, pose, first + j, name, primary_frame(j, size)).image
+        capture_frame(dev, cam, listener, pose, first + j, name, primary_frame(j, size)).image
         for j, (name, _) in enumerate(PRIMARY_FRAMES)
     ]
     try:

@@ -61,6 +61,7 @@ from adaproj_edge.session.hand import HandMotion, _min_jerk
 from adaproj_edge.session.scene_render import (
     CameraOptics,
     LitView,
+    Paint,
     clean_capture,
     expose,
     lit_view,
@@ -154,6 +155,10 @@ class CalibrationSimSettings:
     faults: SimFaults = field(default_factory=SimFaults)
     stops: FloatArray | None = None
     photometric: bool = False
+    albedo: NDArray[np.float32] | None = None
+    """The surface's colour (H, W, 3, blue-green-red reflectance in [0, 1]) as the true
+    projector sees it from the first stop (a :class:`~adaproj_edge.session.scene_render.Paint`);
+    None: the procedural grey texture of ``optics``."""
 
 
 class SimWorld:
@@ -167,6 +172,13 @@ class SimWorld:
         self.rng = np.random.default_rng(settings.seed)
         self.path = StopPath(seconds=0.0, seed=settings.seed, stops=np.asarray(stops, float))
         self.shown: list[tuple[int, int, Image]] = []  # (time on the wall, id, frame)
+        self.paint: Paint | None = None
+        if settings.albedo is not None:
+            size = (rig.projector.height, rig.projector.width, 3)
+            if settings.albedo.shape != size:
+                raise InputError(f"the albedo is {settings.albedo.shape}, not the frame's {size}")
+            R0, t0 = self.pose(T0_NS)
+            self.paint = Paint(settings.albedo, R0, t0, rig.projector.K, rig.distortion)
 
     def pose(self, t_ns: int) -> tuple[FloatArray, FloatArray]:
         """``R_W_P`` (3, 3), ``t_W_P`` (3,) at ``t_ns``."""
@@ -275,7 +287,7 @@ class SimCamera(FixedCamera):
         if self._view is None or self._view[0] != key:
             self._clean.clear()
             view = lit_view(w.scene, w.rig, R, p, self._K, self._size, w.settings.optics,
-                            w.rig.distortion)  # fmt: skip
+                            w.rig.distortion, w.paint)  # fmt: skip
             self._view = (key, view)
         return self._view
 

@@ -4,7 +4,9 @@ For one device pose (:class:`LitView`): every camera pixel is cast into the scen
 ``supersample`` x ``supersample`` points; each point is lit by the projector pixel
 that covers it — when the projector sees the point (a shadow map from the
 projector's side; lens distortion of the true projector applied) — with Lambertian
-falloff ``cos(incidence) / distance^2`` and a textured albedo. :func:`render_capture`
+falloff ``cos(incidence) / distance^2`` and a textured albedo (a procedural grey
+texture, or a :class:`Paint`: a coloured picture painted onto the scene from one
+projector pose, as ``adaproj simulate-calibration --albedo`` asks). :func:`render_capture`
 then turns a projector frame into a grey camera image: projector gamma and black
 level, ambient light, a little light reflected between the surfaces (a wide blur
 of the direct light), the camera's exposure and blur, shot and read noise, 8-bit
@@ -52,6 +54,11 @@ class CameraOptics:
     supersample: int = 3
 
 
+GREY_WEIGHTS = (0.114, 0.587, 0.299)
+"""The grey camera's shares of the projector's blue, green and red light (OpenCV's
+BGR-to-grey weights)."""
+
+
 def distort(xn: FloatArray, yn: FloatArray, d: FloatArray) -> tuple[FloatArray, FloatArray]:
     """OpenCV's lens distortion ``d`` = (k1, k2, p1, p2, k3) of normalised coordinates."""
     k1, k2, p1, p2, k3 = (float(v) for v in d)
@@ -81,6 +88,31 @@ def _albedo(points_w: FloatArray, amplitude: float) -> FloatArray:
 
 
 @dataclass(frozen=True)
+class Paint:
+    """A picture painted onto the scene: ``albedo`` (H, W, 3) float32, the blue,
+    green and red reflectance in [0, 1] of each pixel of a projector (intrinsics
+    ``K``, lens ``distortion``) at pose (``R_W_P``, ``t_W_P``) -- the surface as that
+    projector sees it. Points outside its frame take the nearest edge's colour."""
+
+    albedo: NDArray[np.float32]
+    R_W_P: FloatArray
+    t_W_P: FloatArray
+    K: FloatArray
+    distortion: FloatArray | None = None
+
+    def at(self, points_w: FloatArray) -> NDArray[np.float32]:
+        """The reflectance (..., 3) of world points (..., 3) (NaN points: the corner's)."""
+        pts_p = (points_w - self.t_W_P) @ self.R_W_P
+        uv = np.nan_to_num(project_points(pts_p, self.K, self.distortion), nan=-1.0)
+        uv = np.where(pts_p[..., 2:3] > 0, uv, -1.0).astype(np.float32)
+        out = cv2.remap(
+            np.ascontiguousarray(self.albedo, np.float32), uv[..., 0], uv[..., 1],
+            cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE,
+        )  # fmt: skip
+        return np.asarray(out, np.float32)
+
+
+@dataclass(frozen=True)
 class LitView:
     """The geometry of one device pose, at ``supersample`` x the camera resolution.
 
@@ -90,7 +122,9 @@ class LitView:
     ``albedo`` (H, W) float32 (0 where there is no surface); ``footprint_px``: the
     median distance in projector pixels between neighbouring points (the projector
     frame is blurred over it before it is sampled, so a point stands for its whole
-    patch of the frame: no aliasing between the two pixel grids).
+    patch of the frame: no aliasing between the two pixel grids); ``colour`` (H, W, 3)
+    float32 or None (grey): a painted point's reflectance per primary over its grey
+    ``albedo`` (the :data:`GREY_WEIGHTS` mean of the three is 1).
     """
 
     uv: NDArray[np.float32]
@@ -98,6 +132,7 @@ class LitView:
     albedo: NDArray[np.float32]
     supersample: int
     footprint_px: float = 0.0
+    colour: NDArray[np.float32] | None = None
 
 
 def lit_view(
@@ -109,9 +144,12 @@ def lit_view(
     size: tuple[int, int],
     optics: CameraOptics,
     distortion: FloatArray | None = None,
+    paint: Paint | None = None,
 ) -> LitView:
     """Cast the camera's pixels (``K_camera`` at ``size`` (w, h), frame D of ``rig``)
-    into ``scene`` with the device at pose (``R_W_P``, ``t_W_P``); see :class:`LitView`."""
+    into ``scene`` with the device at pose (``R_W_P``, ``t_W_P``); see :class:`LitView`.
+    With ``paint`` the scene's albedo is the painted picture's, not the procedural
+    texture."""
     n = optics.supersample
     w, h = size
     Ks = DepthCameraModel(K_camera, w, h).intrinsics_at(n * w, n * h)
@@ -138,14 +176,23 @@ def lit_view(
     cos = normals_cos(pts_p)
     cos = np.where(np.isfinite(cos), cos, 0.0)
     pts_w = pts_p @ R_W_P.T + t_W_P
-    albedo = np.where(np.isfinite(z), _albedo(pts_w, optics.albedo_texture), 0.0)
+    colour = None
+    if paint is None:
+        albedo = np.where(np.isfinite(z), _albedo(pts_w, optics.albedo_texture), 0.0)
+    else:
+        rgb = paint.at(pts_w)
+        grey = rgb @ np.asarray(GREY_WEIGHTS, np.float32)
+        albedo = np.where(np.isfinite(z), grey, 0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            colour = np.where(grey[..., None] > 0, rgb / grey[..., None], 1.0).astype(np.float32)
     light = np.where(seen, albedo * cos * (optics.reference_m / np.where(seen, dist, 1.0)) ** 2, 0)
     step = np.linalg.norm(np.diff(uv, axis=1), axis=-1)[seen[:, 1:] & seen[:, :-1]]
     footprint = float(np.median(step)) if step.size else 0.0
     uv = np.where(seen[..., None], uv, -10.0)
     return LitView(
-        uv.astype(np.float32), light.astype(np.float32), albedo.astype(np.float32), n, footprint
-    )
+        uv.astype(np.float32), light.astype(np.float32), albedo.astype(np.float32), n, footprint,
+        colour,
+    )  # fmt: skip
 
 
 def projector_light(frame: Image, gamma: float, black_level: float) -> NDArray[np.float32]:
@@ -154,7 +201,7 @@ def projector_light(frame: Image, gamma: float, black_level: float) -> NDArray[n
     the shares of OpenCV's BGR-to-grey (a grey frame: the light of its value)."""
     lut = (black_level + (1.0 - black_level) * (np.arange(256) / 255.0) ** gamma).astype(np.float32)
     if frame.ndim == 3 and not _grey(frame):
-        weights = np.array([0.114, 0.587, 0.299], np.float32)
+        weights = np.array(GREY_WEIGHTS, np.float32)
         mixed: NDArray[np.float32] = lut[frame] @ weights
         return mixed
     grey = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
@@ -181,14 +228,16 @@ def clean_capture(
     direct: NDArray[np.float32]
     if frame is None:
         direct = np.zeros(view.light.shape, np.float32)
+    elif view.colour is not None and frame.ndim == 3 and not _grey(frame):
+        # a coloured frame on a painted surface: each primary's light, reflected as
+        # the paint returns that primary, in the grey camera's shares
+        sent = np.zeros(view.light.shape, np.float32)
+        for c, share in enumerate(GREY_WEIGHTS):
+            prim = np.ascontiguousarray(frame[..., c])
+            sent += np.float32(share) * view.colour[..., c] * _sent(view, prim, optics)
+        direct = np.asarray(sent * view.light * np.float32(optics.white_level), np.float32)
     else:
-        lightmap = projector_light(frame, optics.gamma, optics.black_level)
-        if view.footprint_px > 1.0:  # a box of the footprint's width, as a Gaussian
-            lightmap = np.asarray(
-                cv2.GaussianBlur(lightmap, (0, 0), view.footprint_px / np.sqrt(12.0)), np.float32
-            )
-        mx, my = view.uv[..., 0], view.uv[..., 1]
-        sent = cv2.remap(lightmap, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+        sent = _sent(view, frame, optics)
         direct = np.asarray(sent * view.light * np.float32(optics.white_level), np.float32)
     if optics.interreflection > 0:
         # light reflected between the surfaces: a wide blur of the direct light (on a
@@ -210,6 +259,19 @@ def clean_capture(
     if optics.blur_px > 0:
         img = np.asarray(cv2.GaussianBlur(img, (0, 0), optics.blur_px), np.float32)
     return img
+
+
+def _sent(view: LitView, frame: Image, optics: CameraOptics) -> NDArray[np.float32]:
+    """The projector's light (H, W) reaching each of the view's points for ``frame``
+    (grey, or BGR weighed as the grey camera sees it)."""
+    lightmap = projector_light(frame, optics.gamma, optics.black_level)
+    if view.footprint_px > 1.0:  # a box of the footprint's width, as a Gaussian
+        lightmap = np.asarray(
+            cv2.GaussianBlur(lightmap, (0, 0), view.footprint_px / np.sqrt(12.0)), np.float32
+        )
+    mx, my = view.uv[..., 0], view.uv[..., 1]
+    sent = cv2.remap(lightmap, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+    return np.asarray(sent, np.float32)
 
 
 def noise_sigma(clean: NDArray[np.float32], optics: CameraOptics) -> NDArray[np.float32]:
