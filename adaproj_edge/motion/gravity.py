@@ -102,6 +102,12 @@ class GravitySettings:
         the deliberate rate is checked from two of its time constants later).
     settle_s : float
         Seconds of used samples before the estimate is trusted.
+    drift_prior_new : float
+        The ridge while the caller's offset is learnt from no samples yet (it grows to
+        ``drift_prior`` over ``offset_learnt_s`` of them): under a strong tremor the
+        offset is learnt slowly and a firm prior towards a wrong one tilts the fit.
+    offset_learnt_s : float
+        Seconds of samples the offset is learnt from for the full ridge.
     shift : float
         Departure (m/s^2, about 2 degrees' worth) of the corrected force in G,
         low-passed with ``shift_tau_s`` (twice), from the fitted gravity over which the
@@ -129,6 +135,8 @@ class GravitySettings:
     warmup_s: float = 0.3
     settle_s: float = 0.25
     shift: float = 0.4
+    drift_prior_new: float = 0.05
+    offset_learnt_s: float = 2.0
     shift_tau_s: float = 0.05
     shift_escape_s: float = 2.0
 
@@ -235,11 +243,13 @@ class GravityFilter:
         rate: FloatArray,
         still: bool = True,
         offset: FloatArray | None = None,
+        offset_s: float | None = None,
     ) -> None:
         """One sample: specific force (3,) m/s^2 and angular rate (3,) rad/s, frame P;
         ``still``: whether the caller sees the device held still (else the accelerometer
         is not used, the gyro carries the estimate); ``offset`` (3,) rad/s: the gyro's
-        zero-rate offset as the caller knows it, taken out of the rate for the
+        zero-rate offset as the caller knows it (``offset_s``: from how many seconds
+        of samples; the prior's ridge grows with it), taken out of the rate for the
         deliberate turn's test only (the integrated rate keeps it: a constant offset is
         a drift the fit follows, a learnt one that moves is not)."""
         s = self.settings
@@ -255,6 +265,9 @@ class GravityFilter:
             dt = 0.1
         if offset is not None:
             self._offset = np.asarray(offset, dtype=np.float64)
+        if offset_s is not None:  # the prior as firm as the offset is learnt
+            k = min(1.0, max(0.0, offset_s) / s.offset_learnt_s)
+            self._trend.drift_prior = s.drift_prior_new + (s.drift_prior - s.drift_prior_new) * k
         if dt > 0:
             self._R = self._R @ small_rotation(w * dt)
             self._rate.update(w if offset is None else w - np.asarray(offset, np.float64), dt)

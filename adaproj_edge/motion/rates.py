@@ -68,6 +68,10 @@ class GyroBias:
     smooth : bool
         Learn from that low-passed rate instead of the raw one (the hand's tremor out
         of the average: at 0.5 degrees RMS it swings the raw rate by about 1 rad/s).
+
+    Attributes
+    ----------
+    value : (3,) rad/s, the offset learnt; learnt_s : seconds of samples it rests on.
     """
 
     def __init__(
@@ -88,6 +92,7 @@ class GyroBias:
         self.raw = LowPass2(lowpass_s)
         self.smooth = smooth
         self.value = np.zeros(3)
+        self.learnt_s = 0.0  # seconds of samples learnt from
         self._weight = 0.0
         self._pending: deque[tuple[FloatArray, float]] = deque()
         self._pending_s = 0.0
@@ -105,6 +110,7 @@ class GyroBias:
         while self._pending and self._pending_s - self._pending[0][1] >= self.hold_s:
             old, odt = self._pending.popleft()
             self._pending_s -= odt
+            self.learnt_s += odt
             # the weight grows from 1 s: the first still seconds count, none alone
             self._weight = min(max(self._weight + odt, 1.0), self.tau_s)
             b = self.value + (old - self.value) * (odt / self._weight)
