@@ -8,9 +8,9 @@ third of a second each) and scores the largest angle while the hand holds still.
 target is a degree on walls (``tools/bench_handheld.py --only sweep`` runs the whole
 sweep); met up to 0.3 degrees of tremor on these 4-s hands, with the gravity estimate
 fitting the drift of the gyro's offset itself (``docs/handheld.md``). At 0.5 degrees
-the 4-s hands leave too little still time to fit the offset's drift (worst 1.2-1.4
-degrees, not asserted); the 6-s hands of the bench are asserted at roll 30, the
-bench's worst roll at that tremor.
+the 4-s hands leave too little still time to fit the offset's drift on every seed
+(over a degree on some, not asserted); the 6-s hands of the bench are asserted at
+roll 30, where the seeds' median is highest at that tremor.
 """
 
 from __future__ import annotations
