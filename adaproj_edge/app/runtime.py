@@ -269,7 +269,8 @@ class Runtime:
         # gravity decides by itself when the accelerometer can be used (the tracker's
         # "moving" also counts a tremor too strong for the depth average); it integrates
         # the rate with its offset (a drift it fits), the learnt offset only tells turns
-        self.upright.update(sample.sensor_ns, accel, rate, True, R @ self.motion.bias.value)
+        bias = self.motion.bias
+        self.upright.update(sample.sensor_ns, accel, rate, True, R @ bias.value, bias.learnt_s)
         if change is True:
             self._motion_ns = sample.receive_ns
             self._event("moving")

@@ -94,7 +94,10 @@ def trace_upright(
         ts = T0_NS + round(t[i] * 1e9)
         sample = ImuSample(ts, ts, tuple(acc[i]), tuple(gyr[i]), 30.0)
         tracker.update(sample)
-        chain.update(ts, R @ (acc[i] - cal.accel_offset), R @ gyr[i], True, R @ tracker.bias.value)
+        bias = tracker.bias
+        chain.update(
+            ts, R @ (acc[i] - cal.accel_offset), R @ gyr[i], True, R @ bias.value, bias.learnt_s
+        )
         if i % every == 0 and t[i] >= from_s:
             up = chain.up
             keep_t.append(float(t[i]))

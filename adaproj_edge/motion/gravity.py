@@ -34,7 +34,10 @@ rotation. The estimate is built in three steps:
    reading clipped at full scale), and not used while the device turns on purpose
    (the gyro rate low-passed by ``rate_tau_s``, over ``max_rate``, and ``hold_s``
    after) or while the caller says it moves (``still=False``): a deliberate move
-   accelerates the device slowly, which no low-pass takes out. The rate's low-pass
+   accelerates the device slowly, which no low-pass takes out; nor while the force,
+   low-passed in G, departs from the fitted gravity by more than ``shift`` (a hand
+   shifting the device sideways hardly turns it, and its slow acceleration tilts the
+   force by degrees). The rate's low-pass
    shows a turn late while its acceleration is there from its start, so the blocks
    used in the ``recall_s`` before a turn is seen are taken back out of the fit.
    Meanwhile the gyro carries the estimate.
@@ -99,11 +102,27 @@ class GravitySettings:
         the deliberate rate is checked from two of its time constants later).
     settle_s : float
         Seconds of used samples before the estimate is trusted.
+    drift_prior_new : float
+        The ridge while the caller's offset is learnt from no samples yet (it grows to
+        ``drift_prior`` over ``offset_learnt_s`` of them): under a strong tremor the
+        offset is learnt slowly and a firm prior towards a wrong one tilts the fit.
+    offset_learnt_s : float
+        Seconds of samples the offset is learnt from for the full ridge.
+    shift : float
+        Departure (m/s^2, about 2 degrees' worth) of the corrected force in G,
+        low-passed with ``shift_tau_s`` (twice), from the fitted gravity over which the
+        device counts as moved without turning (a sideways shift of the hand: its
+        acceleration is slow and the lever does not explain it); 0: no such test.
+    shift_tau_s : float
+        Time constant of each of the two low-passes of that force (the tremor out).
+    shift_escape_s : float
+        After this long moved so without turning the samples are used again (a fit
+        that went wrong is not locked out of its own correction).
     """
 
     memory_s: float = 4.0
     block_s: float = 0.02
-    drift_prior: float = 0.05
+    drift_prior: float = 0.1
     max_drift: float = 0.05
     shake: float = 3.0
     max_departure: float = 3.0
@@ -115,6 +134,11 @@ class GravitySettings:
     max_lever: float = 1.0
     warmup_s: float = 0.3
     settle_s: float = 0.25
+    shift: float = 0.4
+    drift_prior_new: float = 0.05
+    offset_learnt_s: float = 2.0
+    shift_tau_s: float = 0.05
+    shift_escape_s: float = 2.0
 
 
 def _skew(v: FloatArray) -> FloatArray:
@@ -208,6 +232,9 @@ class GravityFilter:
         self._block_s = 0.0
         self._recent: deque[tuple[float, FloatArray, float]] = deque()  # used blocks
         self._offset: FloatArray | None = None  # the caller's gyro offset, frame P
+        self._slow = LowPass2(self.settings.shift_tau_s)  # the corrected force in G
+        self._slow_started = False
+        self._shifted_s = 0.0
 
     def update(
         self,
@@ -216,11 +243,13 @@ class GravityFilter:
         rate: FloatArray,
         still: bool = True,
         offset: FloatArray | None = None,
+        offset_s: float | None = None,
     ) -> None:
         """One sample: specific force (3,) m/s^2 and angular rate (3,) rad/s, frame P;
         ``still``: whether the caller sees the device held still (else the accelerometer
         is not used, the gyro carries the estimate); ``offset`` (3,) rad/s: the gyro's
-        zero-rate offset as the caller knows it, taken out of the rate for the
+        zero-rate offset as the caller knows it (``offset_s``: from how many seconds
+        of samples; the prior's ridge grows with it), taken out of the rate for the
         deliberate turn's test only (the integrated rate keeps it: a constant offset is
         a drift the fit follows, a learnt one that moves is not)."""
         s = self.settings
@@ -232,9 +261,13 @@ class GravityFilter:
             self._prev = self._prev_rate = None
             self._block[:] = 0.0
             self._block_s = 0.0
+            self._slow_started = False
             dt = 0.1
         if offset is not None:
             self._offset = np.asarray(offset, dtype=np.float64)
+        if offset_s is not None:  # the prior as firm as the offset is learnt
+            k = min(1.0, max(0.0, offset_s) / s.offset_learnt_s)
+            self._trend.drift_prior = s.drift_prior_new + (s.drift_prior - s.drift_prior_new) * k
         if dt > 0:
             self._R = self._R @ small_rotation(w * dt)
             self._rate.update(w if offset is None else w - np.asarray(offset, np.float64), dt)
@@ -263,7 +296,11 @@ class GravityFilter:
             return
         settling = self._age_s < s.warmup_s + 2.0 * s.rate_tau_s  # the low-pass's start
         turning = not settling and float(np.linalg.norm(self._rate.value)) > s.max_rate
-        if not still or turning:
+        # R_G_P one sample ago: this sample's rotation undone
+        x = (self._R @ small_rotation(-w * dt)) @ f
+        dev = abs(float(np.linalg.norm(f)) - STANDARD_GRAVITY) / s.shake
+        shifted = self._shifted(x, dev * s.shake <= s.max_departure, dt_prev, turning)
+        if not still or turning or shifted:
             self._quiet_s = 0.0
             self._recall(t_prev - s.recall_s)
             self._block[:] = 0.0
@@ -272,18 +309,38 @@ class GravityFilter:
         self._quiet_s += dt_prev
         if self._quiet_s < s.hold_s:
             return
-        dev = abs(float(np.linalg.norm(f)) - STANDARD_GRAVITY) / s.shake
         # beyond max_departure, not gravity and a swing (a reading clipped at full
         # scale, a knock): not used
         weight = 0.0 if dev * s.shake > s.max_departure else dt_prev / (1.0 + dev) ** 2
-        # R_G_P one sample ago: this sample's rotation undone
-        x = (self._R @ small_rotation(-w * dt)) @ f
         self._block[:3] += weight * x
         self._block[3] += weight
         self._block[4] += weight * t_prev
         self._block_s += dt_prev
         if self._block_s >= s.block_s:
             self._flush()
+
+    def _shifted(self, x: FloatArray, usable: bool, dt: float, turning: bool) -> bool:
+        """Whether the force in G (``x`` (3,), low-passed) departs from the fitted
+        gravity by more than ``shift``: the device is being moved without turning."""
+        s = self.settings
+        if usable:
+            if not self._slow_started:
+                self._slow.update(x, s.shift_tau_s)
+                self._slow.update(x, s.shift_tau_s)
+                self._slow_started = True
+            self._slow.update(x, dt)
+        if s.shift <= 0 or not self.ready or not self._slow_started:
+            return False
+        g = self._trend.at(self._age_s, s.max_drift, self._spin())
+        if g is None:
+            return False
+        if float(np.linalg.norm(self._slow.value - g)) <= s.shift or turning:
+            self._shifted_s = 0.0
+            return False
+        self._shifted_s += dt
+        if self._shifted_s > s.shift_escape_s:
+            return False
+        return True
 
     def _flush(self) -> None:
         wsum = float(self._block[3])

@@ -76,7 +76,7 @@ class MotionTracker:
         self._rate = LowPass2(self.settings.lowpass_s)
         self._accel = LowPass2(self.settings.accel_lowpass_s)
         self._accel_started = False
-        self.bias = GyroBias(lowpass_s=self.settings.lowpass_s)
+        self.bias = GyroBias(lowpass_s=self.settings.lowpass_s, smooth=True)
 
     def update(self, sample: ImuSample) -> bool | None:
         """Take one sample; returns True when motion starts, False when the device has

@@ -80,10 +80,11 @@ class Upright:
         rate: FloatArray,
         still: bool = True,
         offset: FloatArray | None = None,
+        offset_s: float | None = None,
     ) -> None:
         """One sample (as :meth:`GravityFilter.update`)."""
         s = self.settings
-        self.gravity.update(t_ns, accel, rate, still, offset)
+        self.gravity.update(t_ns, accel, rate, still, offset, offset_s)
         dt = 0.0 if self._last_ns is None else min(0.1, max(0.0, (t_ns - self._last_ns) * 1e-9))
         self._last_ns = t_ns
         g = self.gravity.up
