@@ -71,20 +71,20 @@ def measure(
     slices = _triangle_slices(len(ys), len(xs))
     for (s0, s1, s2), tri in zip(slices, _geometry(uv, X, label), strict=True):
         c0, c1, c2 = c[s0].reshape(-1, 2), c[s1].reshape(-1, 2), c[s2].reshape(-1, 2)
-        shown = c_ok[s0].ravel() & c_ok[s1].ravel() & c_ok[s2].ravel() & tri.x_ok
+        shown = np.flatnonzero(c_ok[s0].ravel() & c_ok[s1].ravel() & c_ok[s2].ravel() & tri.x_ok)
+        c0, c1, c2 = c0[shown], c1[shown], c2[shown]
+        e1, e2 = c1 - c0, c2 - c0  # the content edges: the columns of dc
+        det = e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1]
         # a fold is a fold anywhere, across a crease too (the map stays continuous there)
-        dc_all = np.stack([c1 - c0, c2 - c0], axis=2)[shown]  # (n, 2, 2) columns
-        det_all = dc_all[:, 0, 0] * dc_all[:, 1, 1] - dc_all[:, 0, 1] * dc_all[:, 1, 0]
-        folds += int(np.sum(det_all <= 0))
-        ok = shown & tri.smooth  # the map is not differentiable across a crease
-        smooth = tri.smooth[shown]
-        dc, det = dc_all[smooth], det_all[smooth]
-        good = det > 0
-        s_big, s_small = _singular_values(tri.dX[ok][good], dc[good], det[good])
+        folds += int(np.sum(det <= 0))
+        # the map is not differentiable across a crease
+        at = np.flatnonzero(tri.smooth[shown] & (det > 0))
+        dc = np.stack([e1[at], e2[at]], axis=2)  # (n, 2, 2) columns
+        s_big, s_small = _singular_values(tri.dX[shown[at]], dc, det[at])
         angles.append(s_big / s_small - 1.0)
         sizes.append(0.5 * np.log(s_big * s_small))
-        cents.append(((c0 + c1 + c2) / 3.0)[ok][good])
-        cents_uv.append(tri.centroid_uv[ok][good])
+        cents.append((c0[at] + c1[at] + c2[at]) / 3.0)
+        cents_uv.append(tri.centroid_uv[shown[at]])
     return Distortion(
         np.concatenate(angles),
         np.concatenate(sizes),
