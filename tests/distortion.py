@@ -249,17 +249,19 @@ def visible_fraction(map_xy: NDArray[np.float32], content_size: tuple[int, int])
     """
     w, h = content_size
     canvas = np.zeros((h, w), dtype=np.uint8)
-    m = map_xy.reshape(-1, 2)
-    m = m[np.isfinite(m).all(axis=1)]
+    finite = np.isfinite(map_xy[..., 0]) & np.isfinite(map_xy[..., 1])  # (H, W)
+    m = map_xy[finite]
     x = np.clip(np.rint(m[:, 0]).astype(int), 0, w - 1)
     y = np.clip(np.rint(m[:, 1]).astype(int), 0, h - 1)
     canvas[y, x] = 1
-    g = map_xy.astype(np.float64)
-    quads = [g[:-1, :-1], g[:-1, 1:], g[1:, 1:], g[1:, :-1]]
+    # every pixel's corner in 1/16 pixels (fillPoly's shift=4) once, not per triangle
+    g = np.zeros(map_xy.shape, dtype=np.int32)
+    g[finite] = np.rint(map_xy[finite].astype(np.float64) * 16).astype(np.int32)
+    quads = [(slice(0, -1), slice(0, -1)), (slice(0, -1), slice(1, None)),
+             (slice(1, None), slice(1, None)), (slice(1, None), slice(0, -1))]  # fmt: skip
     for tri in ((0, 1, 2), (0, 2, 3)):
-        pts = np.stack([quads[k] for k in tri], axis=2).reshape(-1, 3, 2)
-        pts = pts[np.isfinite(pts).all(axis=(1, 2))]
-        q = np.rint(pts * 16).astype(np.int32)
+        kept = finite[quads[tri[0]]] & finite[quads[tri[1]]] & finite[quads[tri[2]]]
+        q = np.stack([g[quads[k]][kept] for k in tri], axis=1)  # (n, 3, 2)
         cv2.fillPoly(canvas, list(q), 1, lineType=cv2.LINE_8, shift=4)
     return float(canvas.mean())
 
