@@ -64,43 +64,27 @@ def measure(
     uv, X, label = _lattice(surface, K, h, w, step)
     ys, xs = uv[:, 0, 1].astype(np.intp), uv[0, :, 0].astype(np.intp)
     c = map_xy[np.ix_(ys, xs)].astype(np.float64)  # content coords (r, c, 2)
-    tris = []
-    for (a0, a1), (b0, b1), (c0, c1) in (
-        ((0, 0), (0, 1), (1, 1)),
-        ((0, 0), (1, 1), (1, 0)),
-    ):
-        sl = lambda o0, o1: (slice(o0, o0 + len(ys) - 1), slice(o1, o1 + len(xs) - 1))  # noqa: E731
-        tris.append((sl(a0, a1), sl(b0, b1), sl(c0, c1)))
+    c_ok = np.isfinite(c[..., 0]) & np.isfinite(c[..., 1])  # (r, c)
     angles, sizes, cents, cents_uv = [], [], [], []
     folds = 0
     nonfinite = int(np.sum(np.isinf(map_xy)))
-    for s0, s1, s2 in tris:
+    slices = _triangle_slices(len(ys), len(xs))
+    for (s0, s1, s2), tri in zip(slices, _geometry(uv, X, label), strict=True):
         c0, c1, c2 = c[s0].reshape(-1, 2), c[s1].reshape(-1, 2), c[s2].reshape(-1, 2)
-        x0, x1, x2 = X[s0].reshape(-1, 3), X[s1].reshape(-1, 3), X[s2].reshape(-1, 3)
-        l0, l1, l2 = label[s0].ravel(), label[s1].ravel(), label[s2].ravel()
-        shown = (
-            np.isfinite(c0).all(1)
-            & np.isfinite(c1).all(1)
-            & np.isfinite(c2).all(1)
-            & np.isfinite(x0).all(1)
-            & np.isfinite(x1).all(1)
-            & np.isfinite(x2).all(1)
-        )
+        shown = np.flatnonzero(c_ok[s0].ravel() & c_ok[s1].ravel() & c_ok[s2].ravel() & tri.x_ok)
+        c0, c1, c2 = c0[shown], c1[shown], c2[shown]
+        e1, e2 = c1 - c0, c2 - c0  # the content edges: the columns of dc
+        det = e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1]
         # a fold is a fold anywhere, across a crease too (the map stays continuous there)
-        dc_all = np.stack([c1 - c0, c2 - c0], axis=2)[shown]
-        det_all = dc_all[:, 0, 0] * dc_all[:, 1, 1] - dc_all[:, 0, 1] * dc_all[:, 1, 0]
-        folds += int(np.sum(det_all <= 0))
-        ok = shown & (l0 == l1) & (l1 == l2)  # the map is not differentiable across a crease
-        dc = np.stack([c1 - c0, c2 - c0], axis=2)[ok]  # (n, 2, 2) columns
-        dX = np.stack([x1 - x0, x2 - x0], axis=2)[ok]  # (n, 3, 2)
-        det = dc[:, 0, 0] * dc[:, 1, 1] - dc[:, 0, 1] * dc[:, 1, 0]
-        good = det > 0
-        s_big, s_small = _singular_values(dX[good], dc[good], det[good])
+        folds += int(np.sum(det <= 0))
+        # the map is not differentiable across a crease
+        at = np.flatnonzero(tri.smooth[shown] & (det > 0))
+        dc = np.stack([e1[at], e2[at]], axis=2)  # (n, 2, 2) columns
+        s_big, s_small = _singular_values(tri.dX[shown[at]], dc, det[at])
         angles.append(s_big / s_small - 1.0)
         sizes.append(0.5 * np.log(s_big * s_small))
-        cents.append(((c0 + c1 + c2) / 3.0)[ok][good])
-        u0, u1, u2 = uv[s0].reshape(-1, 2), uv[s1].reshape(-1, 2), uv[s2].reshape(-1, 2)
-        cents_uv.append(((u0 + u1 + u2) / 3.0)[ok][good])
+        cents.append((c0[at] + c1[at] + c2[at]) / 3.0)
+        cents_uv.append(tri.centroid_uv[shown[at]])
     return Distortion(
         np.concatenate(angles),
         np.concatenate(sizes),
@@ -109,6 +93,65 @@ def measure(
         folds,
         nonfinite,
     )
+
+
+Slices = tuple[tuple[slice, slice], tuple[slice, slice], tuple[slice, slice]]
+
+
+def _triangle_slices(rows: int, cols: int) -> tuple[Slices, Slices]:
+    """The corners of the lattice's two triangles per cell (split along the top-left to
+    bottom-right diagonal) as slices of an (rows, cols) lattice."""
+
+    def at(o0: int, o1: int) -> tuple[slice, slice]:
+        return slice(o0, o0 + rows - 1), slice(o1, o1 + cols - 1)
+
+    return (at(0, 0), at(0, 1), at(1, 1)), (at(0, 0), at(1, 1), at(1, 0))
+
+
+@dataclass(frozen=True)
+class _Triangles:
+    """What the scorer needs of one set of the lattice's triangles on the surface, the
+    same for every map: corners hit the surface (n,), corners on one smooth patch (n,),
+    the surface edge vectors (n, 3, 2) and the centroids in the projector (n, 2)."""
+
+    x_ok: NDArray[np.bool_]
+    smooth: NDArray[np.bool_]
+    dX: NDArray[np.float64]
+    centroid_uv: NDArray[np.float64]
+
+
+def _geometry(
+    uv: NDArray[np.float64], X: NDArray[np.float64], label: NDArray[np.int64]
+) -> tuple[_Triangles, _Triangles]:
+    """:class:`_Triangles` of both triangle sets of a :func:`_lattice`, worked out once per
+    lattice (kept with it, by the identity of its read-only arrays)."""
+    key = id(X)
+    kept = _GEOMETRY.get(key)
+    if kept is not None and kept[0] is X:
+        return kept[1]
+    out = []
+    for s0, s1, s2 in _triangle_slices(*X.shape[:2]):
+        x0, x1, x2 = X[s0].reshape(-1, 3), X[s1].reshape(-1, 3), X[s2].reshape(-1, 3)
+        l0, l1, l2 = label[s0].ravel(), label[s1].ravel(), label[s2].ravel()
+        u0, u1, u2 = uv[s0].reshape(-1, 2), uv[s1].reshape(-1, 2), uv[s2].reshape(-1, 2)
+        x_ok = np.asarray(np.isfinite(x0).all(1) & np.isfinite(x1).all(1) & np.isfinite(x2).all(1))
+        tri = _Triangles(
+            x_ok,
+            (l0 == l1) & (l1 == l2),
+            np.stack([x1 - x0, x2 - x0], axis=2),
+            (u0 + u1 + u2) / 3.0,
+        )
+        for a in (tri.x_ok, tri.smooth, tri.dX, tri.centroid_uv):
+            a.setflags(write=False)
+        out.append(tri)
+    pair = (out[0], out[1])
+    if len(_GEOMETRY) >= 16:
+        del _GEOMETRY[next(iter(_GEOMETRY))]
+    _GEOMETRY[key] = (X, pair)
+    return pair
+
+
+_GEOMETRY: dict[int, tuple[NDArray[np.float64], tuple[_Triangles, _Triangles]]] = {}
 
 
 def _singular_values(
@@ -123,22 +166,21 @@ def _singular_values(
     correct to a few rounding errors, so ``sigma1 / sigma2 - 1`` is as accurate as an
     SVD's where the map is nearly conformal and where it is thin
     (``tests/test_distortion.py`` holds the two together)."""
-    inv = (
-        np.stack(
-            [
-                np.stack([dc[:, 1, 1], -dc[:, 0, 1]], axis=1),
-                np.stack([-dc[:, 1, 0], dc[:, 0, 0]], axis=1),
-            ],
-            axis=1,
-        )
-        / det[:, None, None]
-    )
+    inv = np.empty_like(dc)  # inv(dc), written out (a stack of stacks costs more)
+    inv[:, 0, 0] = dc[:, 1, 1] / det
+    inv[:, 0, 1] = -dc[:, 0, 1] / det
+    inv[:, 1, 0] = -dc[:, 1, 0] / det
+    inv[:, 1, 1] = dc[:, 0, 0] / det
     j = dX @ inv  # (n, 3, 2)
     j0, j1 = j[:, :, 0], j[:, :, 1]
     a, b, d = np.sum(j0 * j0, 1), np.sum(j0 * j1, 1), np.sum(j1 * j1, 1)
     half_gap = np.hypot(0.5 * (a - d), b)  # (sigma1^2 - sigma2^2) / 2
     big = np.sqrt(0.5 * (a + d) + half_gap)
-    small = np.linalg.norm(np.cross(j0, j1), axis=1) / big
+    # |j0 x j1| component by component (np.cross and norm's general paths cost more)
+    cx = j0[:, 1] * j1[:, 2] - j0[:, 2] * j1[:, 1]
+    cy = j0[:, 2] * j1[:, 0] - j0[:, 0] * j1[:, 2]
+    cz = j0[:, 0] * j1[:, 1] - j0[:, 1] * j1[:, 0]
+    small = np.sqrt(cx * cx + cy * cy + cz * cz) / big
     return big, small
 
 
@@ -207,18 +249,30 @@ def visible_fraction(map_xy: NDArray[np.float32], content_size: tuple[int, int])
     """
     w, h = content_size
     canvas = np.zeros((h, w), dtype=np.uint8)
-    m = map_xy.reshape(-1, 2)
-    m = m[np.isfinite(m).all(axis=1)]
+    finite = np.isfinite(map_xy[..., 0]) & np.isfinite(map_xy[..., 1])  # (H, W)
+    m = map_xy[finite]
     x = np.clip(np.rint(m[:, 0]).astype(int), 0, w - 1)
     y = np.clip(np.rint(m[:, 1]).astype(int), 0, h - 1)
     canvas[y, x] = 1
-    g = map_xy.astype(np.float64)
-    quads = [g[:-1, :-1], g[:-1, 1:], g[1:, 1:], g[1:, :-1]]
+    # every pixel's corner in 1/16 pixels (fillPoly's shift=4) once, not per triangle
+    g = np.zeros(map_xy.shape, dtype=np.int32)
+    g[finite] = np.rint(map_xy[finite].astype(np.float64) * 16).astype(np.int32)
+    quads = [(slice(0, -1), slice(0, -1)), (slice(0, -1), slice(1, None)),
+             (slice(1, None), slice(1, None)), (slice(1, None), slice(0, -1))]  # fmt: skip
+    # fillPoly fills by parity along each row, edges drawn too: a triangle changes only
+    # pixels within a pixel of its box, so one whose box (2 pixels wider) the projector's
+    # pixels cover already would change nothing; leaving those out is exact
+    holes = np.zeros((h + 1, w + 1), dtype=np.int64)  # summed area of the uncovered pixels
+    holes[1:, 1:] = np.cumsum(np.cumsum(canvas == 0, axis=0), axis=1)
     for tri in ((0, 1, 2), (0, 2, 3)):
-        pts = np.stack([quads[k] for k in tri], axis=2).reshape(-1, 3, 2)
-        pts = pts[np.isfinite(pts).all(axis=(1, 2))]
-        q = np.rint(pts * 16).astype(np.int32)
-        cv2.fillPoly(canvas, list(q), 1, lineType=cv2.LINE_8, shift=4)
+        kept = finite[quads[tri[0]]] & finite[quads[tri[1]]] & finite[quads[tri[2]]]
+        q = np.stack([g[quads[k]][kept] for k in tri], axis=1)  # (n, 3, 2)
+        x0 = np.clip(q[:, :, 0].min(axis=1) // 16 - 2, 0, w)
+        x1 = np.clip(-(-q[:, :, 0].max(axis=1) // 16) + 3, 0, w)
+        y0 = np.clip(q[:, :, 1].min(axis=1) // 16 - 2, 0, h)
+        y1 = np.clip(-(-q[:, :, 1].max(axis=1) // 16) + 3, 0, h)
+        open_ = holes[y1, x1] - holes[y0, x1] - holes[y1, x0] + holes[y0, x0] > 0
+        cv2.fillPoly(canvas, list(q[open_]), 1, lineType=cv2.LINE_8, shift=4)
     return float(canvas.mean())
 
 

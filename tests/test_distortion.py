@@ -4,6 +4,7 @@ and frame asked for."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from adaproj_edge.geometry.analytic import get_surface, simulate_surface
@@ -64,3 +65,37 @@ def test_rays_kept_per_surface_are_the_surface_asked_for() -> None:
         assert np.array_equal(kept.log_size, fresh.log_size) and kept.folds == fresh.folds
     assert np.array_equal(sphere.log_size, again.log_size)
     assert not np.array_equal(sphere.log_size, corner.log_size)  # not the first surface
+
+
+def _every_triangle_filled(map_xy: np.ndarray, size: tuple[int, int]) -> float:
+    """visible_fraction as first written: every finite triangle filled."""
+    w, h = size
+    canvas = np.zeros((h, w), dtype=np.uint8)
+    m = map_xy.reshape(-1, 2)
+    m = m[np.isfinite(m).all(axis=1)]
+    canvas[np.clip(np.rint(m[:, 1]).astype(int), 0, h - 1),
+           np.clip(np.rint(m[:, 0]).astype(int), 0, w - 1)] = 1  # fmt: skip
+    g = map_xy.astype(np.float64)
+    quads = [g[:-1, :-1], g[:-1, 1:], g[1:, 1:], g[1:, :-1]]
+    for tri in ((0, 1, 2), (0, 2, 3)):
+        pts = np.stack([quads[k] for k in tri], axis=2).reshape(-1, 3, 2)
+        pts = pts[np.isfinite(pts).all(axis=(1, 2))]
+        q = np.rint(pts * 16).astype(np.int32)
+        cv2.fillPoly(canvas, list(q), 1, lineType=cv2.LINE_8, shift=4)
+    return float(canvas.mean())
+
+
+def test_visible_fraction_fills_what_filling_every_triangle_fills() -> None:
+    """Leaving out the triangles the projector's pixels already cover changes nothing:
+    maps shrinking and magnifying the content, with holes, a fold and overlaps, each
+    equal to filling every triangle (the same pixels are counted: exactly equal)."""
+    rng = np.random.default_rng(3)
+    v, u = np.mgrid[0:90, 0:140].astype(np.float64)
+    for scale in (0.6, 1.0, 2.5):
+        m = np.stack([u, v], axis=-1) * scale + rng.normal(scale=0.3, size=(90, 140, 2))
+        m[20:26, 30:50] = np.nan
+        m[40:60, 60:90, 0] = m[40:60, 60:90, 0][:, ::-1]  # a fold
+        m[70:80, 10:40] = m[70:80, 10:40] * 1.7 - 15  # overlapping the rest
+        size = (int(140 * scale * 0.9), int(90 * scale * 0.9))
+        got = distortion.visible_fraction(m.astype(np.float32), size)
+        assert got == _every_triangle_filled(m.astype(np.float32), size) and got < 1.0

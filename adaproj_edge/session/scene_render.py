@@ -160,15 +160,21 @@ def lit_view(
     pts_p = pts_d @ T[:3, :3].T + T[:3, 3]
     proj = rig.projector
     uv = project_points(pts_p, proj.K, distortion)
-    # the projector's own view of the scene: a point it lights is the nearest on its ray
-    shadow = scene.points_seen(proj.K, proj.width, proj.height, R_W_P, t_W_P)[..., 2]
     with np.errstate(invalid="ignore"):
         ui = np.rint(uv[..., 0]).astype(np.int64, copy=False)
         vi = np.rint(uv[..., 1]).astype(np.int64, copy=False)
         inside = (ui >= 0) & (ui < proj.width) & (vi >= 0) & (vi < proj.height)
         inside &= np.isfinite(pts_p[..., 2])
         ui, vi = np.where(inside, ui, 0), np.where(inside, vi, 0)
-        z_first = shadow[vi, ui]
+        # the projector's own view of the scene: a point it lights is the nearest on its
+        # ray (a shadow map, cast only at the projector pixels the camera's points fall in)
+        flat = vi * proj.width + ui
+        shadow = np.full(proj.width * proj.height, np.nan)
+        lit = np.zeros(shadow.size, dtype=bool)
+        lit[flat[inside]] = True
+        pixels = np.flatnonzero(lit)
+        shadow[pixels] = scene.depths_seen(proj.K, proj.width, proj.height, R_W_P, t_W_P, pixels)
+        z_first = shadow[flat]
         z = pts_p[..., 2]
         seen = inside & ~(z > np.where(np.isfinite(z_first), z_first, np.inf) * 1.01 + 0.005)
     # Lambertian falloff from the projector
@@ -293,7 +299,9 @@ def expose(
     img = rng.standard_normal(clean.shape, dtype=np.float32)
     img *= sigma
     img += clean
-    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    np.rint(img, out=img)  # in place: a calibration simulates ~1000 frames of 1280x800
+    np.clip(img, 0, 255, out=img)
+    return img.astype(np.uint8)
 
 
 def render_capture(

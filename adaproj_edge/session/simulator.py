@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from adaproj_edge.arrays import FloatArray
+from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import InputError
 from adaproj_edge.geometry.analytic import SURFACES, AnalyticSurface, get_surface, ray_cast
 from adaproj_edge.geometry.calibration import Calibration
@@ -183,11 +183,33 @@ class Scene:
         have z = 1 in the camera frame, so the hit's ray parameter is its depth.
         """
         rays = pixel_rays(np.asarray(K, np.float64).tobytes(), int(width), int(height))
+        return self._cast(rays, R_W_C, t_W_C)
+
+    def depths_seen(
+        self,
+        K: FloatArray,
+        width: int,
+        height: int,
+        R_W_C: FloatArray,
+        t_W_C: FloatArray,
+        pixels: IntArray,
+    ) -> FloatArray:
+        """Depths (N,) in the camera frame of the flat pixel indices ``pixels`` (N,)
+        (``row * width + col``): the z of :meth:`points_seen` at those pixels (NaN:
+        nothing), casting only their rays (a shadow map looked up at a few pixels)."""
+        rays = pixel_rays(np.asarray(K, np.float64).tobytes(), int(width), int(height))
+        z: FloatArray = self._cast(rays.reshape(-1, 3)[pixels], R_W_C, t_W_C)[:, 2]
+        return z
+
+    def _cast(self, rays: FloatArray, R_W_C: FloatArray, t_W_C: FloatArray) -> FloatArray:
+        """Points (..., 3) in the camera frame where ``rays`` (..., 3, z = 1, camera
+        frame) from a camera at pose (R_W_C, t_W_C) meet the surface (NaN: nothing)."""
         if isinstance(self.surface, MeshSurface):
             z = self.surface.intersect(np.asarray(t_W_C, dtype=np.float64), rays @ R_W_C.T)
             return rays * z[..., None]
         hits = ray_cast(self.surface, t_W_C, rays @ R_W_C.T)
-        return (hits - t_W_C) @ R_W_C
+        out: FloatArray = (hits - t_W_C) @ R_W_C
+        return out
 
 
 @functools.lru_cache(maxsize=4)
