@@ -491,6 +491,7 @@ class Figures:
     no_object_pct: float = float("nan")
     plane_triangles: int = 0
     spread: float = float("nan")  # the angle measure between two fits of the region's plane
+    upright_spread: float = float("nan")  # deg: the upright read on fits to halves (see figures)
     upright_rule: str = ""  # the plane the upright figure is measured on: wall or floor
     kind: str = ""  # what the device showed: content-aware, content-free, ...
     warp_ok: bool | None = None
@@ -710,7 +711,11 @@ def plane_spread(frame: RealFrame, region: Region) -> tuple[float, float, float]
 
 
 def figures(
-    frame: RealFrame, region: Region, render: bool = True, runtime: bool = True
+    frame: RealFrame,
+    region: Region,
+    render: bool = True,
+    runtime: bool = True,
+    spreads: bool = False,
 ) -> tuple[Figures, DeviceRun]:
     """Run ``region`` of ``frame`` through the device (:func:`run_runtime`; with
     ``runtime`` off, the runtime's chain by hand: :func:`run_device`) and score it;
@@ -719,7 +724,11 @@ def figures(
     Distortion is measured on the plane fitted in the region's ``plane_box`` (planar
     regions); the upright error on that plane for planar regions, else on the dominant
     plane of the real points under the subject shown (the salient content; all the
-    content when too little of it is shown), with the rule of its kind."""
+    content when too little of it is shown), with the rule of its kind. With
+    ``spreads``, also the upright figure's own spread (``Figures.upright_spread``): the
+    largest change of the figure read on planes fitted to halves of the same points
+    (left and right, top and bottom), what the figure cannot resolve there (a small
+    patch of clutter, or a far wall whose raw points the sensor's slow error tilts)."""
     run = run_runtime(frame, region) if runtime else run_device(frame, region)
     fig = Figures(run.projected, run.error, 100.0 * valid_fraction(frame, run.calibration))
     fig.kind = run.kind
@@ -751,12 +760,17 @@ def figures(
     if np.isfinite(pts).all(axis=1).sum() < 50:
         return fig, run
     tol = plane_tol(frame, float(np.nanmedian(pts[:, 2])))
+
+    def on_plane(n: FloatArray, d: float) -> tuple[FloatArray, int]:
+        """The Jacobians on the plane ``n . X = d`` where the real surface is it."""
+        X = plane_hits(n, d, uv, K)
+        with np.errstate(invalid="ignore"):
+            on = np.abs(real @ n - d) < tol  # the real surface there is the plane
+        keep = on & shown & np.isfinite(X).all(axis=-1)
+        return jacobians(X, keep, shown_xy)
+
     n, d, _ = fit_plane(pts, tol)
-    X = plane_hits(n, d, uv, K)
-    with np.errstate(invalid="ignore"):
-        on = np.abs(real @ n - d) < tol  # the real surface there is the plane
-    keep = on & shown & np.isfinite(X).all(axis=-1)
-    J, fig.folds = jacobians(X, keep, shown_xy)
+    J, fig.folds = on_plane(n, d)
     fig.plane_triangles = len(J)
     fig.upright_rule = plane_rule(n, run.up_p)
     if len(J) < 20:
@@ -765,4 +779,21 @@ def figures(
     if region.planar:
         fig.angle, fig.size = angle_size(J)
         fig.spread = plane_spread(frame, region)[0]
+    if spreads:
+        if region.planar:
+            u0, v0, u1, v1 = region.plane_box
+            rows, cols = np.mgrid[v0:v1, u0:u1].reshape(2, -1)
+        else:
+            rows, cols = np.nonzero(subject)
+        reads = []
+        for coord in (cols, rows):
+            for half in (coord < np.median(coord), coord >= np.median(coord)):
+                if np.isfinite(pts[half]).all(axis=1).sum() < 50:
+                    continue
+                nh, dh, _ = fit_plane(pts[half], tol)
+                Jh = on_plane(nh, dh)[0]
+                if len(Jh) >= 20:
+                    reads.append(upright_error(Jh, nh, plane_rule(nh, run.up_p), run.up_p))
+        if reads:
+            fig.upright_spread = max(abs(r - fig.upright_deg) for r in reads)
     return fig, run
