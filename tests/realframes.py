@@ -52,6 +52,7 @@ The figures are computed from the raw points alone (nothing of the code under te
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import io
 import json
 import tempfile
@@ -242,7 +243,21 @@ def disparity_noise(frame: RealFrame) -> float:
     median absolute deviation) of the raw disparities ``f B / z`` about the plane fitted
     to the floor box, at least :data:`MIN_DISPARITY_SIGMA_PX` (a clean render's floor
     is exact to the millimetre). It holds the steps, the random error and the floor's
-    slow error: measured on the frame itself, not taken from the device's model."""
+    slow error: measured on the frame itself, not taken from the device's model. Kept
+    per frame (its depth, camera and floor box)."""
+    key = hashlib.blake2b(frame.depth_mm.tobytes(), digest_size=16)
+    key.update(np.asarray([*frame.K.ravel(), frame.baseline_m, *frame.floor_box]).tobytes())
+    found = _NOISE.get(key.digest())
+    if found is None:
+        found = _NOISE[key.digest()] = _disparity_noise(frame)
+    return found
+
+
+_NOISE: dict[bytes, float] = {}  # disparity_noise's, per frame
+
+
+def _disparity_noise(frame: RealFrame) -> float:
+    """:func:`disparity_noise`, measured."""
     pts = box_points(frame, frame.floor_box)
     n, d, _ = fit_plane(pts, plane_tol(frame, float(np.nanmedian(pts[:, 2]))))
     pts = pts[np.isfinite(pts).all(axis=1)]
