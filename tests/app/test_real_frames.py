@@ -322,7 +322,7 @@ def test_a_far_wall_with_boxes_on_simulated_oak_d_depth() -> None:
     """The device path aimed at a wall 3.75 m away with boxes in front (the sensor model
     of an OAK-D: its steps there are 5.3 cm, its error 4.5 cm): a picture, off the
     boxes' silhouettes, upright on the wall. Its jumps are counted beyond the frame's
-    own disparity noise (a fixed 5 cm counted 3-4 % of this picture as bridging). The
+    own disparity noise (a fixed 5 cm counted 4.2 % of this picture as bridging). The
     upright is read on the true wall and gravity (0.7-1.2 deg on five noise draws): a
     plane fitted to the raw points there is 1-4 deg off (the sensor's slow error), and
     on it the harness's figure reads 0.2-2.4 deg for the same pictures."""
