@@ -41,13 +41,18 @@ The figures are computed from the raw points alone (nothing of the code under te
 - across a depth jump: shown samples next to a shown sample (1 or 2 samples away) whose
   real point lies more than ``JUMP_M`` away nearly along the ray (within
   ``JUMP_RAY_DEG``: a curtain between a silhouette and what is behind it, not a slanted
-  wall nor a quantisation step), bridging a silhouette; or with no real point within
-  ``NO_OBJECT_RADIUS`` samples (where no object is); as a fraction of the shown samples.
+  wall nor a quantisation step) and further apart in disparity than the frame's own
+  noise explains (``JUMP_SIGMAS`` of a pair's, from the disparity noise measured on the
+  frame's floor: :func:`disparity_noise`), bridging a silhouette; or with no real point
+  within ``NO_OBJECT_RADIUS`` samples (where no object is); as a fraction of the shown
+  samples. A sensor's depth error grows as depth squared: at 4-5 m two neighbouring
+  points of one wall differ by more than 5 cm along the ray by noise alone.
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import io
 import json
 import tempfile
@@ -76,6 +81,8 @@ FIXTURES = Path(__file__).parent / "fixtures" / "real"
 MIN_STEP = 4  # projector pixels between the samples of the real surface, at least
 JUMP_M = 0.05  # a jump: neighbouring samples' real points at least this far apart ...
 JUMP_RAY_DEG = 4.0  # ... along a line within this angle of the ray (a silhouette's curtain)
+JUMP_SIGMAS = 4.0  # ... and this many of the pair's disparity noise apart
+MIN_DISPARITY_SIGMA_PX = 0.125 / np.sqrt(12.0)  # an 1/8-pixel step's own, at least
 NO_OBJECT_RADIUS = 2  # samples: a shown sample this far from any real point lies on nothing
 PROJECTOR_IN_D = np.array([-0.012, 0.04, -0.005])  # the projector's centre in frame D
 PLANAR_KINDS = ("wall", "floor")
@@ -229,6 +236,38 @@ def plane_tol(frame: RealFrame, z: float) -> float:
     triangulating sensor (a flat wall is a staircase of such steps), at least 1 cm."""
     step = z * z / (frame.K[0, 0] * frame.baseline_m) / 8.0
     return max(0.01, 1.5 * float(step))
+
+
+def disparity_noise(frame: RealFrame) -> float:
+    """The frame's disparity noise (px, one sigma, one pixel): the spread (1.4826 x the
+    median absolute deviation) of the raw disparities ``f B / z`` about the plane fitted
+    to the floor box, at least :data:`MIN_DISPARITY_SIGMA_PX` (a clean render's floor
+    is exact to the millimetre). It holds the steps, the random error and the floor's
+    slow error: measured on the frame itself, not taken from the device's model. Kept
+    per frame (its depth, camera and floor box)."""
+    key = hashlib.blake2b(frame.depth_mm.tobytes(), digest_size=16)
+    key.update(np.asarray([*frame.K.ravel(), frame.baseline_m, *frame.floor_box]).tobytes())
+    found = _NOISE.get(key.digest())
+    if found is None:
+        found = _NOISE[key.digest()] = _disparity_noise(frame)
+    return found
+
+
+_NOISE: dict[bytes, float] = {}  # disparity_noise's, per frame
+
+
+def _disparity_noise(frame: RealFrame) -> float:
+    """:func:`disparity_noise`, measured."""
+    pts = box_points(frame, frame.floor_box)
+    n, d, _ = fit_plane(pts, plane_tol(frame, float(np.nanmedian(pts[:, 2]))))
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z_plane = d / (pts / pts[:, 2:3] @ n)
+    fb = frame.K[0, 0] * frame.baseline_m
+    r = fb / pts[:, 2] - fb / z_plane
+    r = r[np.isfinite(r)]
+    mad = float(np.median(np.abs(r - np.median(r))))
+    return max(MIN_DISPARITY_SIGMA_PX, 1.4826 * mad)
 
 
 def box_points(frame: RealFrame, box: tuple[int, int, int, int]) -> FloatArray:
@@ -467,6 +506,7 @@ class Figures:
     no_object_pct: float = float("nan")
     plane_triangles: int = 0
     spread: float = float("nan")  # the angle measure between two fits of the region's plane
+    upright_spread: float = float("nan")  # deg: the upright read on fits to halves (see figures)
     upright_rule: str = ""  # the plane the upright figure is measured on: wall or floor
     kind: str = ""  # what the device showed: content-aware, content-free, ...
     warp_ok: bool | None = None
@@ -532,8 +572,17 @@ def valid_fraction(frame: RealFrame, cal: Calibration) -> float:
     return float(np.mean(frame.depth_mm.reshape(-1)[inside] > 0))
 
 
-def jump_figures(shown: NDArray[np.bool_], real: FloatArray) -> tuple[float, float]:
-    """(bridging, no object) in % of the shown samples."""
+def jump_figures(
+    shown: NDArray[np.bool_],
+    real: FloatArray,
+    disparity: FloatArray | None = None,
+    noise_px: float = 0.0,
+) -> tuple[float, float]:
+    """(bridging, no object) in % of the shown samples ``shown`` (r, c), whose real
+    points are ``real`` (r, c, 3) (NaN: none). With ``disparity`` (r, c), the sensor's
+    disparity (px) of each real point, a jump must also be more than ``JUMP_SIGMAS``
+    pair's noise apart there (``sqrt(2) noise_px``): what one frame's noise makes of
+    one surface is not a silhouette."""
     n = int(shown.sum())
     if n == 0:
         return 0.0, 0.0
@@ -550,6 +599,10 @@ def jump_figures(shown: NDArray[np.bool_], real: FloatArray) -> tuple[float, flo
         ray = xa / np.linalg.norm(xa, axis=-1, keepdims=True)
         sin = np.linalg.norm(np.cross(seg, ray), axis=-1) / np.maximum(length, 1e-12)
         jump = both & (length > JUMP_M) & (sin < sin_max)
+        if disparity is not None:
+            with np.errstate(invalid="ignore"):
+                apart = np.abs(disparity[a] - disparity[b]) > JUMP_SIGMAS * np.sqrt(2) * noise_px
+            jump &= apart
         bridge[a] |= jump
         bridge[b] |= jump
     k = 2 * NO_OBJECT_RADIUS + 1
@@ -673,7 +726,11 @@ def plane_spread(frame: RealFrame, region: Region) -> tuple[float, float, float]
 
 
 def figures(
-    frame: RealFrame, region: Region, render: bool = True, runtime: bool = True
+    frame: RealFrame,
+    region: Region,
+    render: bool = True,
+    runtime: bool = True,
+    spreads: bool = False,
 ) -> tuple[Figures, DeviceRun]:
     """Run ``region`` of ``frame`` through the device (:func:`run_runtime`; with
     ``runtime`` off, the runtime's chain by hand: :func:`run_device`) and score it;
@@ -682,7 +739,11 @@ def figures(
     Distortion is measured on the plane fitted in the region's ``plane_box`` (planar
     regions); the upright error on that plane for planar regions, else on the dominant
     plane of the real points under the subject shown (the salient content; all the
-    content when too little of it is shown), with the rule of its kind."""
+    content when too little of it is shown), with the rule of its kind. With
+    ``spreads``, also the upright figure's own spread (``Figures.upright_spread``): the
+    largest change of the figure read on planes fitted to halves of the same points
+    (left and right, top and bottom), what the figure cannot resolve there (a small
+    patch of clutter, or a far wall whose raw points the sensor's slow error tilts)."""
     run = run_runtime(frame, region) if runtime else run_device(frame, region)
     fig = Figures(run.projected, run.error, 100.0 * valid_fraction(frame, run.calibration))
     fig.kind = run.kind
@@ -697,7 +758,13 @@ def figures(
     shown_xy = m[uv[..., 1].astype(int), uv[..., 0].astype(int)].astype(np.float64)
     shown = np.isfinite(shown_xy).all(axis=-1)
     fig.shown_pct = 100.0 * float(shown.mean())
-    fig.bridging_pct, fig.no_object_pct = jump_figures(shown, real)
+    z_d = (real - cal.T_P_D[:3, 3]) @ cal.T_P_D[:3, :3][:, 2]  # depth in frame D
+    fb = frame.K[0, 0] * frame.baseline_m
+    with np.errstate(divide="ignore", invalid="ignore"):
+        disparity = fb / z_d
+    fig.bridging_pct, fig.no_object_pct = jump_figures(
+        shown, real, disparity, disparity_noise(frame)
+    )
     if region.planar:
         pts = to_p(cal, box_points(frame, region.plane_box))
     else:  # the plane where the subject (the salient content) is shown
@@ -708,12 +775,17 @@ def figures(
     if np.isfinite(pts).all(axis=1).sum() < 50:
         return fig, run
     tol = plane_tol(frame, float(np.nanmedian(pts[:, 2])))
+
+    def on_plane(n: FloatArray, d: float) -> tuple[FloatArray, int]:
+        """The Jacobians on the plane ``n . X = d`` where the real surface is it."""
+        X = plane_hits(n, d, uv, K)
+        with np.errstate(invalid="ignore"):
+            on = np.abs(real @ n - d) < tol  # the real surface there is the plane
+        keep = on & shown & np.isfinite(X).all(axis=-1)
+        return jacobians(X, keep, shown_xy)
+
     n, d, _ = fit_plane(pts, tol)
-    X = plane_hits(n, d, uv, K)
-    with np.errstate(invalid="ignore"):
-        on = np.abs(real @ n - d) < tol  # the real surface there is the plane
-    keep = on & shown & np.isfinite(X).all(axis=-1)
-    J, fig.folds = jacobians(X, keep, shown_xy)
+    J, fig.folds = on_plane(n, d)
     fig.plane_triangles = len(J)
     fig.upright_rule = plane_rule(n, run.up_p)
     if len(J) < 20:
@@ -722,4 +794,21 @@ def figures(
     if region.planar:
         fig.angle, fig.size = angle_size(J)
         fig.spread = plane_spread(frame, region)[0]
+    if spreads:
+        if region.planar:
+            u0, v0, u1, v1 = region.plane_box
+            rows, cols = np.mgrid[v0:v1, u0:u1].reshape(2, -1)
+        else:
+            rows, cols = np.nonzero(subject)
+        reads = []
+        for coord in (cols, rows):
+            for half in (coord < np.median(coord), coord >= np.median(coord)):
+                if np.isfinite(pts[half]).all(axis=1).sum() < 50:
+                    continue
+                nh, dh, _ = fit_plane(pts[half], tol)
+                Jh = on_plane(nh, dh)[0]
+                if len(Jh) >= 20:
+                    reads.append(upright_error(Jh, nh, plane_rule(nh, run.up_p), run.up_p))
+        if reads:
+            fig.upright_spread = max(abs(r - fig.upright_deg) for r in reads)
     return fig, run

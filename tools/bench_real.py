@@ -18,7 +18,10 @@ Prints a table, then one line per region against the aims (nothing projected wit
 >= 30 % valid depth; upright within 2 deg on walls, 5 deg on floors; planar regions
 angle <= 0.02 and size <= 0.02, and the line the measure can verify: angle <= 0.02 +
 the region's spread, size <= 0.02; <= 1 % shown across a jump; ``adaproj warp`` and the
-runtime agree), then a summary. Always exits 0: it measures, the tests assert.
+runtime agree), then a summary. ``up_spr`` is the upright figure's own spread (degrees:
+how far it moves when read on planes fitted to halves of the same raw points); an
+upright figure within it of the line cannot be told from the fit's error. Always exits
+0: it measures, the tests assert.
 
     .venv/bin/python tools/bench_real.py [--frame NAME] [--no-render]
 """
@@ -82,6 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     frames = [f for f in load_frames(FIXTURES) if not args.frame or f.name in args.frame]
     head = (
         f"{'frame':15} {'region':16} {'kind':12} {'valid%':>6} {'shown%':>6} {'up_deg':>6} "
+        f"{'up_spr':>6} "
         f"{'angle':>6} {'size':>6} {'spread':>6} {'bridge%':>7} {'noobj%':>6} {'warp':>5}  device"
     )
     print(head)
@@ -89,12 +93,13 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for frame in frames:
         for region in frame.regions:
-            fig, _ = figures(frame, region, render=not args.no_render)
+            fig, _ = figures(frame, region, render=not args.no_render, spreads=True)
             rows.append((frame, region, fig))
             device = f"shows {fig.kind}" if fig.projected else f"NOTHING: {fig.error}"
             print(
                 f"{frame.name:15} {region.name:16} {region.kind:12} {fig.valid_pct:6.1f} "
-                f"{fig.shown_pct:6.1f} {_f(fig.upright_deg, '6.1f')} {_f(fig.angle, '6.3f')} "
+                f"{fig.shown_pct:6.1f} {_f(fig.upright_deg, '6.1f')} "
+                f"{_f(fig.upright_spread, '6.1f')} {_f(fig.angle, '6.3f')} "
                 f"{_f(fig.size, '6.3f')} {_f(fig.spread, '6.3f')} {_f(fig.bridging_pct, '7.2f')} "
                 f"{_f(fig.no_object_pct, '6.2f')} {'ok' if fig.warp_ok else 'FAIL':>5}  {device}",
                 flush=True,
