@@ -26,7 +26,9 @@ they are.
 Given the depth the lattice was estimated from before its smoothing (:class:`RawDepth`),
 a piece's plane is fitted to the raw points under it, weighted by the sensor's noise
 model and robustly (:func:`fit_plane_raw`): at a few metres a Kinect's depth error is
-centimetres and the smoothed lattice of a small piece tilts with it. And a lattice cell
+centimetres and the smoothed lattice of a small piece tilts with it. Where two planes
+meet, the raw points within the sensor's footprint of their crease are left out of the
+fit (their depth mixes both planes': :func:`find_planes`). And a lattice cell
 that an object's edge runs through (some corners on a plane, some not) takes the plane
 where its raw depth lies on it, rather than a slope interpolated across the edge, on
 which content would be shown distorted.
@@ -40,7 +42,7 @@ Pure: arrays in, arrays out.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -83,11 +85,8 @@ class PlaneSettings:
     window: int = 2  # candidate planes from (2 w + 1)^2 node windows ...
     stride: int = 2  # ... centred on every stride-th node
     # fit an accepted piece's plane to the raw depth under it (fit_plane_raw) rather
-    # than to its nodes: off, because on a simulated OAK-D wall corner it placed the
-    # crease worse (the device's evened-out brightness went from 1.07 to 1.14-1.21 on
-    # two of five noise draws); on the recorded real frames it keeps one wall's up
-    # within 2 degrees that the node fit turns 2.3 degrees
-    raw_fit: bool = False
+    # than to its smoothed nodes: at a few metres the smoothing tilts a small piece
+    raw_fit: bool = True
 
 
 @dataclass(frozen=True)
@@ -216,6 +215,27 @@ class RawDepth:
         return pts[np.isfinite(pts).all(axis=1)]
 
 
+def crease_px(points: FloatArray, a: Plane, b: Plane, focal_px: float) -> FloatArray:
+    """(n,) how far ``points`` (n, 3) in frame P lie from the crease of planes ``a``
+    and ``b`` in the image of a camera there of focal length ``focal_px``: the sine of
+    the angle between each point's ray and the plane through the origin and the crease
+    line, times the focal length (the distance in pixels at the image's centre, a
+    little less than it off the centre); inf for all when the planes are parallel or
+    their crease runs through the origin."""
+    u = np.cross(a.normal, b.normal)
+    nu = float(np.linalg.norm(u))
+    if nu < 1e-6:
+        return np.full(len(points), np.inf)
+    u /= nu
+    # the point of the crease nearest the origin
+    q = np.linalg.lstsq(np.stack([a.normal, b.normal, u]), [a.offset, b.offset, 0.0])[0]
+    m = np.cross(q, u)
+    nm = float(np.linalg.norm(m))
+    if nm < 1e-9:
+        return np.full(len(points), np.inf)
+    return np.asarray(focal_px * np.abs(points @ (m / nm)) / np.linalg.norm(points, axis=1))
+
+
 def fit_plane_raw(
     points: FloatArray, sensor: SensorModel | None, normal: FloatArray, offset: float
 ) -> tuple[FloatArray, float]:
@@ -272,7 +292,9 @@ def find_planes(
     """The large planar pieces of ``surface``'s lattice, largest first (``sensor``: the
     noise model of the depth it came from, None for none). Given the ``raw`` depth the
     lattice was estimated from and ``settings.raw_fit``, a piece's plane is fitted to the
-    raw points under it (:func:`fit_plane_raw`), not to its smoothed nodes."""
+    raw points under it (:func:`fit_plane_raw`), not to its smoothed nodes; when two or
+    more planes are found, each is fitted again without the raw points whose depth
+    mixes in another's across their crease (with a ``sensor``: see :func:`_off_creases`)."""
     s = settings or PlaneSettings()
     pts = surface.points.astype(np.float64)
     valid = np.asarray(np.isfinite(pts).all(axis=-1))
@@ -330,7 +352,40 @@ def find_planes(
         )
         if piece.sum() >= s.min_fraction * n_valid and rms <= max_rms and planar:
             planes.append(Plane(n, d, piece, rms, bend))
+    if raw is not None and s.raw_fit and sensor is not None and len(planes) > 1:
+        planes = [_off_creases(p, planes, raw, sensor) for p in planes]
     return planes
+
+
+def _off_creases(plane: Plane, planes: list[Plane], raw: RawDepth, sensor: SensorModel) -> Plane:
+    """``plane`` refitted to its raw points (:func:`fit_plane_raw`) but those whose depth
+    the other side of a crease with another of ``planes`` is mixed into: a pixel within
+    the sensor's footprint of the crease is made from a patch of the image that reaches
+    across it, so its depth lies off both planes (in front of an inside corner's walls,
+    behind an outside corner's), all on one side, and tilts the plane towards the other;
+    the crease between two snapped walls moves with it (a millimetre moves it a
+    projector pixel at 1.8 m). A point ``t`` pixels from the crease is left out when the
+    two planes' depths there, across the part of its patch beyond the crease
+    (``footprint - t`` pixels), differ by more than the sensor's depth step: within a
+    step the sensor's quantisation reports the mix as one of the plane's own depths
+    (so a wall that bends a few degrees, snapped as two planes, keeps its points)."""
+    pts = raw.samples(plane.nodes)
+    rays = pts / pts[:, 2:3]
+    foot = sensor.footprint_px
+    keep = np.ones(len(pts), dtype=bool)
+    for other in planes:
+        if other is plane:
+            continue
+        t = crease_px(pts, plane, other, sensor.focal_px)
+        gap = np.abs(_plane_depth(rays, other) - _plane_depth(rays, plane))
+        # the gap grows as t from the crease: (footprint - t) / t of it lies across
+        with np.errstate(invalid="ignore"):
+            mixed = (t < foot) & ~(gap * (foot - t) <= sensor.step_m(pts[:, 2]) * t)
+        keep &= ~mixed
+    if keep.sum() < 3 or keep.all():
+        return plane
+    n, d = fit_plane_raw(pts[keep], sensor, plane.normal, plane.offset)
+    return replace(plane, normal=n, offset=d)
 
 
 def plane_labels(

@@ -211,12 +211,16 @@ class GreyCase:
         The gain applied.
     frame : (H, W, 3) uint8 array
         The uncompensated frame.
+    surface : Surface or None
+        The surface the gain was made from (the device's estimate, walls snapped);
+        None where it is the analytic surface itself.
     """
 
     before: Seen
     after: Seen
     gain: GainMap
     frame: NDArray[np.uint8]
+    surface: Surface | None = None
 
 
 def grey_case(
@@ -289,7 +293,7 @@ def device_grey_case(
     viewer = viewer_for(surface, eye)
     before = seen_brightness(analytic, cal.projector, plain, viewer)
     after = seen_brightness(analytic, cal.projector, apply_gain(plain, gain), viewer)
-    return GreyCase(before, after, gain, plain)
+    return GreyCase(before, after, gain, plain, surface)
 
 
 def creased(

@@ -60,12 +60,17 @@ class SensorKind:
     bias_px : float
         RMS over a plane of the disparity's slowly varying error (px): what a wall keeps
         of its error when its depth is averaged over patches of many pixels.
+    footprint_px : float
+        Radius (px) of the patch of the image one pixel's depth is made from (the
+        matcher's window, the device's median filter): a pixel this close to a crease
+        or an edge mixes the two sides' depths, so its depth is off both.
     """
 
     name: str
     subpixel_bits: int
     disparity_sigma_px: float
     bias_px: float = 0.0
+    footprint_px: float = 3.0
 
 
 # The slowly varying disparity error (``bias_px``) of a Kinect-class sensor, measured on
@@ -78,10 +83,12 @@ class SensorKind:
 # measures it, an OAK-D is given the same (a stereo camera's calibration leaves a
 # slowly varying disparity error of the same order).
 SENSORS: dict[str, SensorKind] = {
-    # OAK-D stereo: subpixel mode, 3 fractional bits by default (DepthAI)
-    "oak-d": SensorKind("oak-d", 3, 0.1, 0.04),
-    # Kinect-class structured light: disparity in 1/8 px (11-bit raw values)
-    "kinect": SensorKind("kinect", 3, 0.07, 0.04),
+    # OAK-D stereo: subpixel mode, 3 fractional bits by default (DepthAI), its depth
+    # median-filtered over 7 x 7 pixels by default (a footprint of 3 px)
+    "oak-d": SensorKind("oak-d", 3, 0.1, 0.04, 3.0),
+    # Kinect-class structured light: disparity in 1/8 px (11-bit raw values), matched
+    # over windows of about 9 x 9 pixels (a footprint of 4 px)
+    "kinect": SensorKind("kinect", 3, 0.07, 0.04, 4.0),
 }
 
 
@@ -104,6 +111,8 @@ class SensorModel:
     bias_px : float
         RMS of the disparity's slowly varying error over a plane (px; see
         :class:`SensorKind`).
+    footprint_px : float
+        Radius (px) of the patch one pixel's depth is made from (see :class:`SensorKind`).
     """
 
     name: str
@@ -112,12 +121,15 @@ class SensorModel:
     subpixel_bits: int = 3
     disparity_sigma_px: float = 0.1
     bias_px: float = 0.0
+    footprint_px: float = 3.0
 
     def __post_init__(self) -> None:
         if self.focal_px <= 0 or self.baseline_m <= 0:
             raise InputError("a depth sensor needs a positive focal length and baseline")
         if not 0 <= self.subpixel_bits <= 8 or self.disparity_sigma_px < 0 or self.bias_px < 0:
             raise InputError("subpixel bits must be 0..8 and the disparity noise and bias >= 0")
+        if self.footprint_px < 0:
+            raise InputError("a depth sensor's footprint must be >= 0 pixels")
 
     @classmethod
     def of(cls, camera: DepthCameraModel, kind: str = "oak-d") -> SensorModel:
@@ -133,6 +145,7 @@ class SensorModel:
             k.subpixel_bits,
             k.disparity_sigma_px,
             k.bias_px,
+            k.footprint_px,
         )
 
     @property

@@ -15,7 +15,10 @@ class SurfaceFilter:
 
     Per node, a running mean of the depth along the ray (so a point stays on its ray),
     weighted by confidence; a node whose new depth jumps more than ``jump_rel`` of its
-    depth starts over. At most ``max_frames`` frames are kept in the mean.
+    depth starts over. At most ``max_frames`` frames are kept in the mean. The raw depth
+    before smoothing (:attr:`SurfaceEstimate.raw`) is averaged the same way, per ray of
+    its finer lattice and with equal weights, so a plane fitted to it has the noise of
+    the averaged frames, not of the newest one.
     """
 
     def __init__(self, max_frames: int = 30, jump_rel: float = 0.03) -> None:
@@ -25,13 +28,41 @@ class SurfaceFilter:
         self._w: FloatArray | None = None
         self._c: FloatArray | None = None
         self._n = 0
+        self._raw_z: FloatArray | None = None  # the raw depth's running mean, its frames
+        self._raw_w: FloatArray | None = None
         self.current: SurfaceEstimate | None = None
 
     def reset(self) -> None:
         """Forget the running mean; the next estimate starts it over."""
         self._s = self._w = self._c = None
+        self._raw_z = self._raw_w = None
         self._n = 0
         self.current = None
+
+    def _raw(self, est: SurfaceEstimate, restart: bool) -> FloatArray | None:
+        """The raw points (fine rows, fine cols, 3) averaged along their rays over the
+        frames kept (a ray whose depth jumped starts over; one the newest frame missed
+        keeps its mean); restarted with ``restart`` or a new fine lattice."""
+        raw = est.raw
+        if raw is None:
+            self._raw_z = self._raw_w = None
+            return None
+        z = raw[..., 2]
+        ok = np.isfinite(z)
+        if restart or self._raw_z is None or self._raw_w is None or self._raw_z.shape != z.shape:
+            self._raw_z, self._raw_w = z.copy(), ok.astype(np.float64)
+            return raw
+        old = self._raw_z
+        with np.errstate(invalid="ignore"):
+            jump = ok & np.isfinite(old) & (np.abs(z - old) > self.jump_rel * old)
+        w_old = np.where(jump, 0.0, np.minimum(self._raw_w, self.max_frames - 1))
+        total = w_old + ok
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = (np.where(w_old > 0, old, 0.0) * w_old + np.where(ok, z, 0.0)) / total
+        self._raw_z, self._raw_w = np.where(total > 0, mean, np.nan), total
+        p = est.surface.projector
+        out: FloatArray = p.rays(lattice_uv(p, z.shape)) * self._raw_z[..., None]
+        return out
 
     def update(self, est: SurfaceEstimate, still: bool) -> SurfaceEstimate:
         """Fold ``est`` into the running mean and return the averaged estimate.
@@ -58,6 +89,7 @@ class SurfaceFilter:
             self._s, self._c = s_new.copy(), c_new.copy()
             self._w = np.where(np.isfinite(s_new), np.maximum(c_new, 1e-3), 0.0)
             self._n = 1
+            self._raw(est, True)
             self.current = est
             return est
         assert self._w is not None and self._c is not None
@@ -83,6 +115,11 @@ class SurfaceFilter:
         )
         filled = est.filled & ~np.isfinite(self._s) | (est.filled & (w_old == 0))
         self.current = SurfaceEstimate(
-            surface, c.astype(np.float32), filled, self._n, raw=est.raw, raw_step=est.raw_step
+            surface,
+            c.astype(np.float32),
+            filled,
+            self._n,
+            raw=self._raw(est, False),
+            raw_step=est.raw_step,
         )
         return self.current
