@@ -61,7 +61,19 @@ def test_face_set_faces_outweigh_the_background(
         found += any(iou(tuple(b), s.face) > 0.3 for b in cmap.faces)
         assert region_ratio(cmap.full_size(), s.face) >= 1.5
         assert 0.0 <= cmap.values.min() and cmap.values.max() <= 1.0
-    assert found >= 18  # 79 % here; tools/bench_faces.py measures 86 % on 100 scenes
+    assert found >= 18  # tools/bench_faces.py measures 92 % on 100 scenes
+
+
+def test_a_cat_s_fur_is_not_a_face(detector: FaceDetector) -> None:
+    """skimage's cat (chelsea): with the scan image equalised over the whole picture,
+    the fur of its left cheek was a 142-px face whose ellipse reached the image's edge,
+    and its large centred subject lost the warp's gain on a sphere (tests/warp/
+    test_quality.py); equalised locally it is no face, and the test scenes' faces are
+    still found (above, and tools/bench_faces.py: 93 of 101)."""
+    from skimage import data
+
+    cat = cv2.cvtColor(data.chelsea(), cv2.COLOR_RGB2BGR)
+    assert len(detector.detect(cat)) == 0
 
 
 @pytest.mark.parametrize("which", ["poster", "non-face scenes"])
