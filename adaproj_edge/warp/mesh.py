@@ -174,6 +174,8 @@ class MeshGeometry:
         :mod:`~adaproj_edge.warp.displayed`); where every grid triangle was kept and
         looked at for every kind of crease, ``"grid unfolding"``: the crease unfolding
         of the grid's triangles (:func:`~adaproj_edge.render.seams.grid_unfolding`).
+    along : the chords each side was measured in on the surface's development (0: the
+        shapes are their corners'; :meth:`build`).
     """
 
     grid: Grid
@@ -188,6 +190,7 @@ class MeshGeometry:
     ruled: NDArray[np.bool_]
     planar: NDArray[np.bool_]
     memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    along: int = 0
 
     def remember(self, name: str, make: Callable[[], T]) -> T:
         """``make()`` once per mesh (quantities of its geometry, not of a solve)."""
@@ -379,6 +382,7 @@ class MeshGeometry:
             ruled,
             planar,
             memo,
+            along,
         )
 
 
