@@ -158,6 +158,27 @@ def shapes_first(
     return coords, sides, planar
 
 
+def shapes_from_sides(sides: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The :func:`conformal_coords` (T, 3, 2) and planar shapes (T, 3, 2) (as
+    :func:`triangle_shapes`) of triangles given by their side lengths ``sides`` (3, T)
+    (side k from corner k to corner k + 1, component-first as :func:`shapes_first`'s);
+    NaN where the three lengths make no triangle."""
+    l1, l2, l3 = sides
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x2 = (l1 * l1 + l3 * l3 - l2 * l2) / (2 * l1)
+        y2 = np.sqrt(l3 * l3 - x2 * x2)
+    t = sides.shape[1]
+    q = np.zeros((3, 3, t))  # the shape in the plane z = 0, component-first
+    q[0, 1] = l1
+    q[0, 2], q[1, 2] = x2, y2
+    # the shape's normal facing the projector, as planes_first's for a plane seen from
+    # -z: corner 2 at y >= 0 turns it so
+    normals = np.zeros((3, t))
+    normals[2] = -1.0
+    coords, _, planar = shapes_first(q, normals)
+    return coords, planar
+
+
 def dot_first(a: FloatArray, b: FloatArray) -> FloatArray:
     """Dot products of component-first (3, ...) arrays, x + y + z in that order."""
     out: FloatArray = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]

@@ -15,12 +15,14 @@ from numpy.typing import NDArray
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.creases import unfold_measured
+from adaproj_edge.geometry.developed import developed_lengths
 from adaproj_edge.geometry.planes import on_planes, plane_equations
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import (
     grid_triangles,
     planes_first,
     shapes_first,
+    shapes_from_sides,
     triangle_shapes,
     unique_edges,
 )
@@ -30,6 +32,9 @@ from adaproj_edge.warp.warpmap import Grid
 T = TypeVar("T")
 
 MIN_TRIANGLES = 8
+# a side measured along the surface this much longer than its chord crosses a jump
+# (a corrugation's bends lengthen a side by up to 3 % at the adaptive grid's cells)
+STRETCH = 0.05
 
 
 @dataclass
@@ -160,7 +165,8 @@ class MeshGeometry:
         surface was snapped to (:func:`~adaproj_edge.geometry.planes.snap_planes`, listed
         in its meta): the warp keeps them nearly undistorted.
     folded : (T,) bool, the triangles unfolded about a crease (straight or curved); the
-        others' shapes are their own corners'.
+        others' shapes are their own corners' (on a mesh built ``along`` the surface,
+        their sides' developed lengths').
     ruled : (T,) bool, those of them unfolded about a straight crease between curved
         sides (:mod:`~adaproj_edge.geometry.ruled_crease`).
     memo : what callers derive from this geometry alone, made once (:meth:`remember`;
@@ -168,6 +174,8 @@ class MeshGeometry:
         :mod:`~adaproj_edge.warp.displayed`); where every grid triangle was kept and
         looked at for every kind of crease, ``"grid unfolding"``: the crease unfolding
         of the grid's triangles (:func:`~adaproj_edge.render.seams.grid_unfolding`).
+    along : the chords each side was measured in on the surface's development (0: the
+        shapes are their corners'; :meth:`build`).
     """
 
     grid: Grid
@@ -182,6 +190,7 @@ class MeshGeometry:
     ruled: NDArray[np.bool_]
     planar: NDArray[np.bool_]
     memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    along: int = 0
 
     def remember(self, name: str, make: Callable[[], T]) -> T:
         """``make()`` once per mesh (quantities of its geometry, not of a solve)."""
@@ -273,6 +282,7 @@ class MeshGeometry:
         grid_uv: FloatArray | None = None,
         may_rule: NDArray[np.bool_] | None = None,
         drop: NDArray[np.bool_] | None = None,
+        along: int = 0,
     ) -> MeshGeometry:
         """Sample the surface at the grid and keep its largest edge-connected piece.
 
@@ -282,7 +292,11 @@ class MeshGeometry:
         between curved sides may be looked for (None: everywhere; see
         :func:`~adaproj_edge.geometry.creases.unfold_measured`). ``drop`` (2 rows
         cols,) bool, per grid triangle: triangles left out although they meet the
-        surface (a repair's, :mod:`~adaproj_edge.warp.fallback`)."""
+        surface (a repair's, :mod:`~adaproj_edge.warp.fallback`). ``along`` > 0: the
+        triangles not unfolded about a crease take their shapes from their sides'
+        lengths on the surface's development, each side measured in that many chords
+        (:func:`~adaproj_edge.geometry.developed.developed_lengths`), not from their
+        corners (a refined mesh's, :mod:`~adaproj_edge.warp.adaptive`)."""
         if grid_uv is None:
             sampling = base_sampling(grid, surface)
             grid_uv = sampling.grid_uv
@@ -338,6 +352,8 @@ class MeshGeometry:
             mine[:, :, folded] = unfolding.points[folded].transpose(2, 1, 0)
             mine_n[:, folded] = planes_first(mine[:, :, folded])[0]
         coords, sides, shapes = shapes_first(mine, mine_n)
+        if along:
+            _measure_along(surface, grid_uv, topo, sides, coords, shapes, unfolding.folded, along)
         # edge lengths as the (unfolded) triangles have them (side k: k -> k + 1); an
         # edge shared by two triangles gets the mean of their two values
         n_edges = topo.edges.shape[0]
@@ -366,7 +382,38 @@ class MeshGeometry:
             ruled,
             planar,
             memo,
+            along,
         )
+
+
+def _measure_along(
+    surface: Surface,
+    grid_uv: FloatArray,
+    topo: Topology,
+    sides: FloatArray,
+    coords: FloatArray,
+    shapes: FloatArray,
+    folded: NDArray[np.bool_],
+    steps: int,
+) -> None:
+    """Replace, in place, the ``sides`` (3, T), ``coords`` (T, 3, 2) and ``shapes``
+    (T, 3, 2) of the triangles not ``folded`` by those of their sides'
+    :func:`~adaproj_edge.geometry.developed.developed_lengths` (``steps`` chords each),
+    where they make a triangle. A side whose curve has no surface somewhere, or is more
+    than :data:`STRETCH` longer or shorter than its chord (it crosses a jump, a
+    silhouette, not a bend), keeps its chord."""
+    uv = grid_uv.reshape(-1, 2)[topo.verts]
+    ends = np.take(uv, topo.edges, axis=0)
+    new = developed_lengths(surface, ends[:, 0], ends[:, 1], steps)[topo.inverse]
+    new = new.reshape(3, -1)
+    with np.errstate(invalid="ignore"):
+        new = np.where(np.abs(new - sides) <= STRETCH * sides, new, sides)
+    new_coords, new_shapes = shapes_from_sides(new)
+    with np.errstate(invalid="ignore"):
+        ok = ~np.asarray(folded, dtype=bool) & (new_shapes[:, 2, 1] > 0)
+    sides[:, ok] = new[:, ok]
+    coords[ok] = new_coords[ok]
+    shapes[ok] = new_shapes[ok]
 
 
 def _planar(pts: FloatArray, cand: IntArray, equations: FloatArray) -> NDArray[np.bool_]:

@@ -510,7 +510,12 @@ class WarpPlanner:
         if mesh is None:
             coarse_uv = start.warp.grid_uv[np.ix_(rows, cols)]
             mesh = MeshGeometry.build(
-                surface, grid, self.cache, coarse_uv, _may_rule(start, rows, cols)
+                surface,
+                grid,
+                self.cache,
+                coarse_uv,
+                _may_rule(start, rows, cols),
+                along=start.mesh.along,  # the full grid's triangles as its start had them
             )
             start.refinement_meshes[str(grid)] = mesh
         depth = self._depth_of(surface)
