@@ -9,8 +9,8 @@ neighbour triangle's place, on the other wall's plane.
 Ground truth: the independent scorer (``tests/distortion.py``: the rendered per-pixel
 map against rays cast at the analytic surface, every 4 px, small triangles across the
 crease left out). The corners are 60-150 deg, concave and convex, seen straight, from
-the side and from below, with vertical, horizontal and slanted creases placed on a grid
-line, a hair, half a pixel and a pixel from one.
+the left, the right, above and below, with vertical, horizontal and slanted creases placed on a grid
+line, a hair, half a pixel and a pixel from one, and a wall seen 4 deg from grazing.
 """
 
 from __future__ import annotations
@@ -88,6 +88,12 @@ CASES = [
     # A wall 5 deg from grazing, with a flat cell on it, was exact
     pytest.param(37.0, False, -0.5, 33.0, 0.0, False, id="74-convex-grazing"),
     pytest.param(37.0, False, -0.5, 32.0, 0.0, False, id="74-convex-near-grazing"),
+    # the classes the cases above leave out: a concave 60 deg corner seen from the left,
+    # a convex 90 deg one from above (horizontal crease), a convex 150 deg one from the
+    # left and below
+    pytest.param(30.0, True, -0.5, -20.0, 0.0, False, id="60-concave-left"),
+    pytest.param(45.0, False, 0.3, 0.0, -15.0, True, id="90-convex-above"),
+    pytest.param(75.0, False, 0.5, -25.0, 8.0, False, id="150-convex-left-below"),
 ]
 
 
