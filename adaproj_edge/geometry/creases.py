@@ -20,6 +20,15 @@ unfolding. A crease that runs along a grid line leaves flat triangles on either 
 whose planes differ: :attr:`Unfolding.flat` says which triangles are flat, so the
 display does not blend across such an edge (:mod:`adaproj_edge.render.seams`).
 
+A wall seen grazing whose strip ends within the one column of cells the crease runs
+through has no triangle of its own: its triangles are chords across the crease, so
+large on the surface that the other wall's sliver leaves some of them within
+``SLIGHT``. Such a flat triangle that is not ``PLANAR`` lends no plane to a vertex
+whose flattest triangle's plane differs from its own by a crease's angle (the other
+wall's, there), and is a candidate; and a side none of whose corners has a planar
+triangle, across from one whose corners have, takes the plane its own samples in the
+triangle lie on (corners and probes nearer its plane than the other's).
+
 A straight crease may have a curved side (a wall meeting a cone along a ruling): its
 corners' planes are tangent to the cone a cell away, so the line they meet along is off
 the crease, whether they explain its triangles (within ``FIT``, or as a curved crease)
@@ -188,7 +197,9 @@ def unfold_measured(
     # a flat triangle a little off its plane whose plane a vertex's flattest one refutes:
     # a sliver across a crease (a wall seen grazing, its triangles huge on the surface,
     # clipped half a pixel past a line): it lends no plane to that corner
-    refused = _refused_corners(tris, normals, off / size, flat & seen_t, planar, points.shape[0])
+    with np.errstate(invalid="ignore", divide="ignore"):  # (degenerate: not seen_t)
+        rel_off = off / size
+    refused = _refused_corners(tris, normals, rel_off, flat & seen_t, planar, points.shape[0])
     sliver = np.any(refused, axis=1)
     if not np.any(slight) and not np.any(sliver):
         return _nothing_folded(tri_pts, flat)
