@@ -199,7 +199,9 @@ def unfold_measured(
     # clipped half a pixel past a line): it lends no plane to that corner
     with np.errstate(invalid="ignore", divide="ignore"):  # (degenerate: not seen_t)
         rel_off = off / size
-    refused = _refused_corners(tris, normals, rel_off, flat & seen_t, planar, points.shape[0])
+    refused = _refused_corners(
+        tris, tri_pts, normals, size, probes, rel_off, flat & seen_t, planar, points.shape[0]
+    )
     sliver = np.any(refused, axis=1)
     if not np.any(slight) and not np.any(sliver):
         return _nothing_folded(tri_pts, flat)
@@ -408,17 +410,22 @@ def _vertex_any(tris: IntArray, use: NDArray[np.bool_], n: int) -> NDArray[np.bo
 
 def _refused_corners(
     tris: IntArray,
+    tri_pts: FloatArray,
     normals: FloatArray,
+    size: FloatArray,
+    probes: FloatArray,
     rel_off: FloatArray,
     flat: NDArray[np.bool_],
     planar: NDArray[np.bool_],
     n: int,
 ) -> NDArray[np.bool_]:
     """(T, 3): the corners of the ``flat`` (T,) but not ``planar`` triangles ``tris``
-    (T, 3) (unit normals (3, T), probes off their plane by ``rel_off`` (T,) of their
+    (T, 3) (corners ``tri_pts`` (T, 3, 3), unit normals (3, T), ``size`` (T,), surface
+    at the probes (3, 4, T), the probes off their plane by ``rel_off`` (T,) of their
     size) whose plane differs by more than a crease's angle from that of the flattest
-    flat triangle at the same vertex (of ``n``): there the triangle is a chord across a
-    crease that clips a sliver off it, not a piece of the vertex's plane."""
+    flat triangle at the same vertex (of ``n``), where the triangle's other corners and
+    its probes lie on one plane: there the triangle is a chord across a crease that
+    clips a sliver off it at that corner, not a piece of the vertex's plane."""
     out = np.zeros(tris.shape, dtype=bool)
     near = flat & ~planar
     if not np.any(near) or not np.any(planar):
@@ -440,9 +447,41 @@ def _refused_corners(
     ref = flattest[v]
     with np.errstate(invalid="ignore"):
         apart = dot_first(normals[:, t], normals[:, ref]) < CREASE_COS
-    hit = near[t] & apart
-    out[t[hit], k[hit]] = True
+    hit = np.flatnonzero(near[t] & apart)
+    if hit.size == 0:
+        return out
+    # ... and where the triangle is a piece of one plane but for that corner: its other
+    # corners and its probes lie on one within PLANAR (a sliver; on sensed depth a
+    # large flat-looking triangle is noise, not a sliver)
+    th, kh = t[hit], k[hit]
+    samples = np.concatenate([tri_pts[th], probes[:, :, th].transpose(2, 1, 0)], axis=1)
+    use = np.all(np.isfinite(samples), axis=2)
+    use[np.arange(th.size), kh] = False
+    good = _plane_fits(samples, use, PLANAR * size[th])[2]
+    out[th[good], kh[good]] = True
     return out
+
+
+def _plane_fits(
+    x: FloatArray, use: NDArray[np.bool_], tol: FloatArray
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    """Least-squares planes of the points ``x`` (C, K, 3) where ``use`` (C, K): unit
+    normals (C, 3), centres (C, 3), and whether four or more points (three always
+    would) lie on the plane within ``tol`` (C,) and span it (their second principal
+    spread above 100 ``tol``: not a line of points)."""
+    count = use.sum(axis=1)
+    w = use.astype(np.float64)
+    xs = np.where(use[:, :, None], x, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        centre = np.einsum("ck,ckj->cj", w, xs) / count[:, None]
+    centre = np.where(count[:, None] > 0, centre, 0.0)
+    d = (xs - centre[:, None]) * w[:, :, None]
+    vals, vecs = np.linalg.eigh(np.einsum("cki,ckj->cij", d, d))
+    normal = vecs[:, :, 0]
+    off = np.abs(np.einsum("ckj,cj->ck", d, normal)) * w
+    spread = np.sqrt(np.maximum(vals[:, 1], 0.0) / np.maximum(count, 1))
+    good = (count >= 4) & (off.max(axis=1, initial=0.0) <= tol) & (spread > 100 * tol)
+    return normal, centre, good
 
 
 def _sample_planes(
@@ -453,10 +492,9 @@ def _sample_planes(
     tol: FloatArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """The planes (na, pa, nb, pb: (C, 3) each) of the crease candidates, with side a's
-    (where ``redo_a`` (C,)) and side b's (``redo_b``) replaced by the plane that the
-    candidate's ``samples`` (C, K, 3: its corners and probes) nearer that side's plane
-    than the other's lie on, where four or more lie on one within ``tol`` (C,) and
-    span it (three always would)."""
+    (where ``redo_a`` (C,)) and side b's (``redo_b``) replaced by the plane
+    (:func:`_plane_fits`, within ``tol`` (C,)) that the candidate's ``samples`` (C, K,
+    3: its corners and probes) nearer that side's plane than the other's lie on."""
     na, pa, nb, pb = (x.copy() for x in planes)
     seen = np.all(np.isfinite(samples), axis=2)
     x = np.where(seen[:, :, None], samples, 0.0)
@@ -464,21 +502,11 @@ def _sample_planes(
         da = np.abs(np.einsum("ckj,cj->ck", x - pa[:, None], na))
         db = np.abs(np.einsum("ckj,cj->ck", x - pb[:, None], nb))
     for redo, near_side, n_side, p_side in ((redo_a, da < db, na, pa), (redo_b, db < da, nb, pb)):
-        use = seen & near_side & redo[:, None]
-        count = use.sum(axis=1)
-        c = np.flatnonzero(count >= 4)
+        c = np.flatnonzero(redo)
         if c.size == 0:
             continue
-        w = use[c].astype(np.float64)
-        centre = np.einsum("ck,ckj->cj", w, x[c]) / count[c, None]
-        d = (x[c] - centre[:, None]) * w[:, :, None]
-        vals, vecs = np.linalg.eigh(np.einsum("cki,ckj->cij", d, d))
-        normal = vecs[:, :, 0]
+        normal, centre, good = _plane_fits(x[c], (seen & near_side)[c], tol[c])
         normal *= np.where(np.einsum("cj,cj->c", normal, n_side[c]) < 0, -1.0, 1.0)[:, None]
-        off = np.abs(np.einsum("ckj,cj->ck", d, normal)) * w
-        # (on one plane, and across it: not a line of points)
-        spread = np.sqrt(np.maximum(vals[:, 1], 0.0) / count[c])
-        good = (off.max(axis=1) <= tol[c]) & (spread > 100 * tol[c])
         good &= np.einsum("cj,cj->c", normal, n_side[c]) >= SAME_SIDE_COS
         n_side[c[good]] = normal[good]
         p_side[c[good]] = centre[good]

@@ -128,6 +128,20 @@ def decide(
     return na, pa, nb, pb, softness, group_b
 
 
+def plane_fit(points: FloatArray, tol: float) -> tuple[FloatArray, FloatArray] | None:
+    """The least-squares plane (unit normal, centre) of the finite ``points`` (K, 3), if
+    there are four or more, all within ``tol`` of it and spread across it (their second
+    principal spread over 100 ``tol``); else None."""
+    pts = points[np.all(np.isfinite(points), axis=1)]
+    if len(pts) < 4:
+        return None
+    centre = pts.mean(axis=0)
+    _, sv, vt = np.linalg.svd(pts - centre)
+    if np.max(np.abs((pts - centre) @ vt[2])) > tol or sv[1] / np.sqrt(len(pts)) <= 100 * tol:
+        return None
+    return vt[2], centre
+
+
 def sample_plane(
     samples: FloatArray,
     side: tuple[FloatArray, FloatArray],
@@ -135,9 +149,8 @@ def sample_plane(
     tol: float,
 ) -> tuple[FloatArray, FloatArray]:
     """The plane (normal, point) of the triangle's ``samples`` (7, 3: corners, probes)
-    nearer the plane ``side`` than the plane ``other``, if there are four or more, all
-    within ``tol`` of their least-squares plane, spread across it (their second
-    principal spread over 100 ``tol``) and it within 12 deg of ``side``'s; else ``side``."""
+    nearer the plane ``side`` than the plane ``other`` (:func:`plane_fit`), if it is
+    within 12 deg of ``side``'s; else ``side``."""
     n_side, p_side = side
     n_other, p_other = other
     mine = [
@@ -145,18 +158,13 @@ def sample_plane(
         for x in samples
         if np.all(np.isfinite(x)) and abs((x - p_side) @ n_side) < abs((x - p_other) @ n_other)
     ]
-    if len(mine) < 4:
+    fit = plane_fit(np.array(mine).reshape(-1, 3), tol)
+    if fit is None:
         return side
-    pts = np.array(mine)
-    centre = pts.mean(axis=0)
-    _, sv, vt = np.linalg.svd(pts - centre)
-    normal = vt[2] if vt[2] @ n_side >= 0 else -vt[2]
-    spread = sv[1] / np.sqrt(len(mine))
-    if np.max(np.abs((pts - centre) @ normal)) > tol or spread <= 100 * tol:
-        return side
+    normal = fit[0] if fit[0] @ n_side >= 0 else -fit[0]
     if normal @ n_side < SAME_SIDE_COS:
         return side
-    return normal, centre
+    return normal, fit[1]
 
 
 def _ruled(
@@ -242,7 +250,8 @@ def unfold_reference(
         if worst <= PLANAR * sizes[t] and np.all(np.isfinite(normals[t])):
             planar.add(t)
     # a flat triangle not planar whose plane differs from the flattest flat triangle's at
-    # a vertex with planar triangles lends that vertex no plane (a sliver across a crease)
+    # a vertex with planar triangles, and which is a piece of one plane but for that
+    # corner, lends that vertex no plane (a sliver across a crease)
     flat_at: dict[int, list[int]] = {}
     for t, corners in enumerate(tris):
         if t not in slight and np.all(np.isfinite(normals[t])):
@@ -254,7 +263,12 @@ def unfold_reference(
             continue
         flattest = min(ts, key=lambda t: (offs[t], t))
         for t in ts:
-            if t not in planar and float(normals[t] @ normals[flattest]) < CREASE_COS:
+            if t in planar or float(normals[t] @ normals[flattest]) >= CREASE_COS:
+                continue
+            # ... where the rest of the triangle (its other corners, its probes) is a
+            # piece of one plane
+            rest = [points[w] for w in tris[t] if w != v] + list(probes[t])
+            if plane_fit(np.array(rest), PLANAR * sizes[t]) is not None:
                 refused.add((t, v))
     slivers = {t for t, _ in refused}
     # a vertex's plane: from its flat triangles, or where it has none from its smooth ones
