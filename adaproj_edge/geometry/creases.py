@@ -25,7 +25,8 @@ through has no triangle of its own: its triangles are chords across the crease, 
 large on the surface that the other wall's sliver leaves some of them within
 ``SLIGHT``. Such a flat triangle that is not ``PLANAR`` lends no plane to a vertex
 whose flattest triangle's plane differs from its own by a crease's angle (the other
-wall's, there), and is a candidate; and a side none of whose corners has a planar
+wall's, there) where the rest of it lies on one plane (a sliver at that corner), and is
+a candidate; and a side none of whose corners has a planar
 triangle, across from one whose corners have, takes the plane its own samples in the
 triangle lie on (corners and probes nearer its plane than the other's).
 
