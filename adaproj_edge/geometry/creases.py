@@ -20,6 +20,16 @@ unfolding. A crease that runs along a grid line leaves flat triangles on either 
 whose planes differ: :attr:`Unfolding.flat` says which triangles are flat, so the
 display does not blend across such an edge (:mod:`adaproj_edge.render.seams`).
 
+A wall seen grazing whose strip ends within the one column of cells the crease runs
+through has no triangle of its own: its triangles are chords across the crease, so
+large on the surface that the other wall's sliver leaves some of them within
+``SLIGHT``. Such a flat triangle that is not ``PLANAR`` lends no plane to a vertex
+whose flattest triangle's plane differs from its own by a crease's angle (the other
+wall's, there) where the rest of it lies on one plane (a sliver at that corner), and is
+a candidate; and a side none of whose corners has a planar
+triangle, across from one whose corners have, takes the plane its own samples in the
+triangle lie on (corners and probes nearer its plane than the other's).
+
 A straight crease may have a curved side (a wall meeting a cone along a ruling): its
 corners' planes are tangent to the cone a cell away, so the line they meet along is off
 the crease, whether they explain its triangles (within ``FIT``, or as a curved crease)
@@ -50,6 +60,7 @@ from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_fir
 
 ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, of a crease
 SLIGHT = 1e-3  # ... of one it may clip a sliver off
+PLANAR = 1e-4  # ... of a piece of one plane (float32 points: ~1e-6)
 CREASE_COS = float(np.cos(np.deg2rad(5.0)))  # planes further apart than this make a crease
 FIT = 0.25  # the two planes must explain the surface this much better than the triangle
 CURVED_FIT = 0.2  # ... or, on a curved crease, this much better than its chord does
@@ -182,12 +193,22 @@ def unfold_measured(
     # flat in every triangle costs no more than this look)
     slight = off > SLIGHT * size
     flat = ~slight
-    if not np.any(slight):
+    seen_t = np.isfinite(normals).all(axis=0)
+    planar = (off <= PLANAR * size) & seen_t
+    # a flat triangle a little off its plane whose plane a vertex's flattest one refutes:
+    # a sliver across a crease (a wall seen grazing, its triangles huge on the surface,
+    # clipped half a pixel past a line): it lends no plane to that corner
+    with np.errstate(invalid="ignore", divide="ignore"):  # (degenerate: not seen_t)
+        rel_off = off / size
+    refused = _refused_corners(
+        tris, tri_pts, normals, size, probes, rel_off, flat & seen_t, planar, points.shape[0]
+    )
+    sliver = np.any(refused, axis=1)
+    if not np.any(slight) and not np.any(sliver):
         return _nothing_folded(tri_pts, flat)
     # the plane of each vertex: area-weighted normal of its flat triangles, or where it
     # has none (a curved wall) of its smooth ones
-    seen_t = np.isfinite(normals).all(axis=0)
-    acc = _vertex_normals(tris, normals, size, ~slight & seen_t, points.shape[0])
+    acc = _vertex_normals(tris, normals, size, flat & seen_t, points.shape[0], refused)
     loose = _vertex_normals(tris, normals, size, ~rough & slight & seen_t, points.shape[0])
     has_flat = np.any(acc != 0.0, axis=0)
     acc = np.where(has_flat, acc, loose)
@@ -198,7 +219,7 @@ def unfold_measured(
     vn = _borrowed_planes(tris[seen_t], points, vn)
     # only triangles whose corners' planes differ can hold a crease (checked for all
     # rough triangles at once; the loop below then handles the few that remain)
-    rough_t = np.flatnonzero(slight)
+    rough_t = np.flatnonzero(slight | sliver)
     corner_n = vn[:, tris[rough_t]]  # (3, R, 3)
     with np.errstate(invalid="ignore"):
         differ = np.any(dot_first(corner_n, corner_n[:, :, :1]) < CREASE_COS, axis=1)
@@ -221,9 +242,24 @@ def unfold_measured(
     pa = np.where(side, plane_pair[1], plane_lone[1])
     nb = np.where(side, plane_lone[0], plane_pair[0])
     pb = np.where(side, plane_lone[1], plane_pair[1])
+    probe = probes[:, :, cand].transpose(2, 1, 0)  # (C, 4, 3)
+    # a side none of whose corners has a planar triangle, across the crease from one
+    # whose corners have (a wall seen grazing within one cell: its only triangles are
+    # chords across the crease), takes the plane its own samples in the triangle lie
+    # on, where they lie on one (noisy depth, planar nowhere, is not looked at)
+    has_planar = _vertex_any(tris, planar, points.shape[0])
+    on_a = (np.arange(3) == lone[:, None]) != pair_a[:, None]  # (C, 3) corners of side a
+    planar_c = has_planar[tris[cand]]
+    with_a = np.any(planar_c & on_a, axis=1)
+    with_b = np.any(planar_c & ~on_a, axis=1)
+    lacks_a, lacks_b = with_b & ~with_a, with_a & ~with_b
+    if np.any(lacks_a | lacks_b):
+        samples = np.concatenate([tri_pts[cand], probe], axis=1)  # (C, 7, 3)
+        na, pa, nb, pb = _sample_planes(
+            samples, (na, pa, nb, pb), lacks_a, lacks_b, PLANAR * size[cand]
+        )
     # a crease only if the two planes explain the surface inside the triangle (a
     # strongly curved smooth patch, e.g. near a silhouette, is left as it is)
-    probe = probes[:, :, cand].transpose(2, 1, 0)  # (C, 4, 3)
     seen = np.all(np.isfinite(probe), axis=2)
     fit = np.minimum(
         np.abs(np.einsum("cpj,cj->cp", probe - pa[:, None], na)),
@@ -341,17 +377,141 @@ def _kinked(tris: IntArray, signed: FloatArray, size: FloatArray, n: int) -> NDA
 
 
 def _vertex_normals(
-    tris: IntArray, normals: FloatArray, size: FloatArray, use: NDArray[np.bool_], n: int
+    tris: IntArray,
+    normals: FloatArray,
+    size: FloatArray,
+    use: NDArray[np.bool_],
+    n: int,
+    refused: NDArray[np.bool_] | None = None,
 ) -> FloatArray:
     """Sum (3, n) at each of the ``n`` vertices of the normals (3, T) of the triangles
-    ``tris`` (T, 3) where ``use`` holds, weighted by their squared ``size``."""
+    ``tris`` (T, 3) where ``use`` holds, weighted by their squared ``size``; not at the
+    corners ``refused`` (T, 3) marks."""
     at = np.flatnonzero(use)
     weighted = normals[:, at] * size[at] ** 2  # (3, S), added at each corner
     corners = tris[at].ravel()  # (3 S,): corner k of triangle t at 3 t + k
+    keep = None if refused is None or not np.any(refused) else ~refused[at].ravel()
     acc = np.empty((3, n))
     for axis in range(3):
-        acc[axis] = np.bincount(corners, np.repeat(weighted[axis], 3), minlength=n)
+        w = np.repeat(weighted[axis], 3)
+        if keep is None:
+            acc[axis] = np.bincount(corners, w, minlength=n)
+        else:
+            acc[axis] = np.bincount(corners[keep], w[keep], minlength=n)
     return acc
+
+
+def _vertex_any(tris: IntArray, use: NDArray[np.bool_], n: int) -> NDArray[np.bool_]:
+    """(n,) whether each of the ``n`` vertices is a corner of a triangle of ``tris``
+    (T, 3) where ``use`` (T,) holds."""
+    out = np.zeros(n, dtype=bool)
+    out[tris[use].ravel()] = True
+    return out
+
+
+def _refused_corners(
+    tris: IntArray,
+    tri_pts: FloatArray,
+    normals: FloatArray,
+    size: FloatArray,
+    probes: FloatArray,
+    rel_off: FloatArray,
+    flat: NDArray[np.bool_],
+    planar: NDArray[np.bool_],
+    n: int,
+) -> NDArray[np.bool_]:
+    """(T, 3): the corners of the ``flat`` (T,) but not ``planar`` triangles ``tris``
+    (T, 3) (corners ``tri_pts`` (T, 3, 3), unit normals (3, T), ``size`` (T,), surface
+    at the probes (3, 4, T), the probes off their plane by ``rel_off`` (T,) of their
+    size) whose plane differs by more than a crease's angle from that of the flattest
+    flat triangle at the same vertex (of ``n``), where the triangle's other corners and
+    its probes lie on one plane: there the triangle is a chord across a crease that
+    clips a sliver off it at that corner, not a piece of the vertex's plane."""
+    out = np.zeros(tris.shape, dtype=bool)
+    near = flat & ~planar
+    if not np.any(near) or not np.any(planar):
+        return out
+    # only at the vertices of such triangles that also have planar ones
+    touched = _vertex_any(tris, near, n) & _vertex_any(tris, planar, n)
+    at = np.flatnonzero(flat & touched[tris].any(axis=1))
+    if at.size == 0:
+        return out
+    v = tris[at].ravel()
+    t = np.repeat(at, 3)
+    k = np.tile(np.arange(3), at.size)
+    mine = touched[v]
+    v, t, k = v[mine], t[mine], k[mine]
+    order = np.lexsort((rel_off[t], v))  # by vertex, the flattest first
+    first = np.unique(v[order], return_index=True)[1]
+    flattest = np.full(n, -1, dtype=np.intp)
+    flattest[v[order][first]] = t[order][first]
+    ref = flattest[v]
+    with np.errstate(invalid="ignore"):
+        apart = dot_first(normals[:, t], normals[:, ref]) < CREASE_COS
+    hit = np.flatnonzero(near[t] & apart)
+    if hit.size == 0:
+        return out
+    # ... and where the triangle is a piece of one plane but for that corner: its other
+    # corners and its probes lie on one within PLANAR (a sliver; on sensed depth a
+    # large flat-looking triangle is noise, not a sliver)
+    th, kh = t[hit], k[hit]
+    samples = np.concatenate([tri_pts[th], probes[:, :, th].transpose(2, 1, 0)], axis=1)
+    use = np.all(np.isfinite(samples), axis=2)
+    use[np.arange(th.size), kh] = False
+    good = _plane_fits(samples, use, PLANAR * size[th])[2]
+    out[th[good], kh[good]] = True
+    return out
+
+
+def _plane_fits(
+    x: FloatArray, use: NDArray[np.bool_], tol: FloatArray
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    """Least-squares planes of the points ``x`` (C, K, 3) where ``use`` (C, K): unit
+    normals (C, 3), centres (C, 3), and whether four or more points (three always
+    would) lie on the plane within ``tol`` (C,) and span it (their second principal
+    spread above 100 ``tol``: not a line of points)."""
+    count = use.sum(axis=1)
+    w = use.astype(np.float64)
+    xs = np.where(use[:, :, None], x, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        centre = np.einsum("ck,ckj->cj", w, xs) / count[:, None]
+    centre = np.where(count[:, None] > 0, centre, 0.0)
+    d = (xs - centre[:, None]) * w[:, :, None]
+    vals, vecs = np.linalg.eigh(np.einsum("cki,ckj->cij", d, d))
+    normal = vecs[:, :, 0]
+    off = np.abs(np.einsum("ckj,cj->ck", d, normal)) * w
+    spread = np.sqrt(np.maximum(vals[:, 1], 0.0) / np.maximum(count, 1))
+    good = (count >= 4) & (off.max(axis=1, initial=0.0) <= tol) & (spread > 100 * tol)
+    return normal, centre, good
+
+
+def _sample_planes(
+    samples: FloatArray,
+    planes: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+    redo_a: NDArray[np.bool_],
+    redo_b: NDArray[np.bool_],
+    tol: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The planes (na, pa, nb, pb: (C, 3) each) of the crease candidates, with side a's
+    (where ``redo_a`` (C,)) and side b's (``redo_b``) replaced by the plane
+    (:func:`_plane_fits`, within ``tol`` (C,)) that the candidate's ``samples`` (C, K,
+    3: its corners and probes) nearer that side's plane than the other's lie on."""
+    na, pa, nb, pb = (x.copy() for x in planes)
+    seen = np.all(np.isfinite(samples), axis=2)
+    x = np.where(seen[:, :, None], samples, 0.0)
+    with np.errstate(invalid="ignore"):
+        da = np.abs(np.einsum("ckj,cj->ck", x - pa[:, None], na))
+        db = np.abs(np.einsum("ckj,cj->ck", x - pb[:, None], nb))
+    for redo, near_side, n_side, p_side in ((redo_a, da < db, na, pa), (redo_b, db < da, nb, pb)):
+        c = np.flatnonzero(redo)
+        if c.size == 0:
+            continue
+        normal, centre, good = _plane_fits(x[c], (seen & near_side)[c], tol[c])
+        normal *= np.where(np.einsum("cj,cj->c", normal, n_side[c]) < 0, -1.0, 1.0)[:, None]
+        good &= np.einsum("cj,cj->c", normal, n_side[c]) >= SAME_SIDE_COS
+        n_side[c[good]] = normal[good]
+        p_side[c[good]] = centre[good]
+    return na, pa, nb, pb
 
 
 def _borrowed_planes(tris: IntArray, points: FloatArray, vn: FloatArray) -> FloatArray:

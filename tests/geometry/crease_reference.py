@@ -21,6 +21,7 @@ from adaproj_edge.geometry.creases import (
     CURVED_FIT,
     FIT,
     KINK,
+    PLANAR,
     ROUGH,
     RULED_CREASE_COS,
     RULED_FIT,
@@ -76,6 +77,7 @@ def decide(
     cloud: Cloud | None = None,
     curved_side: bool = False,
     near_kink: bool = True,
+    planar_corners: list[bool] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]] | None:
     """Triangle ``t``'s crease, from its corners' planes' normals (3, 3), its corners (3, 3),
     its probes' surface points (4, 3) and their distances to its chord plane (4,): the
@@ -92,6 +94,17 @@ def decide(
     n_a, n_b = corner_normals[group_a], corner_normals[group_b]
     na, pa = side_plane(n_a, corner_points[group_a], n_b.mean(axis=0))
     nb, pb = side_plane(n_b, corner_points[group_b], n_a.mean(axis=0))
+    if planar_corners is not None:
+        # a side none of whose corners has a planar triangle, across from one whose
+        # corners have: the plane of its own samples
+        samples = np.concatenate([corner_points, probes])
+        old = (na, pa, nb, pb)
+        with_a = any(planar_corners[k] for k in group_a)
+        with_b = any(planar_corners[k] for k in group_b)
+        if with_b and not with_a:
+            na, pa = sample_plane(samples, old[:2], old[2:], PLANAR * size)
+        if with_a and not with_b:
+            nb, pb = sample_plane(samples, old[2:], old[:2], PLANAR * size)
     probe = probes[np.all(np.isfinite(probes), axis=1)]
     if probe.size == 0:
         return None
@@ -113,6 +126,45 @@ def decide(
         return None
     softness = SOFTNESS * worst if worst > straight else 0.0
     return na, pa, nb, pb, softness, group_b
+
+
+def plane_fit(points: FloatArray, tol: float) -> tuple[FloatArray, FloatArray] | None:
+    """The least-squares plane (unit normal, centre) of the finite ``points`` (K, 3), if
+    there are four or more, all within ``tol`` of it and spread across it (their second
+    principal spread over 100 ``tol``); else None."""
+    pts = points[np.all(np.isfinite(points), axis=1)]
+    if len(pts) < 4:
+        return None
+    centre = pts.mean(axis=0)
+    _, sv, vt = np.linalg.svd(pts - centre)
+    if np.max(np.abs((pts - centre) @ vt[2])) > tol or sv[1] / np.sqrt(len(pts)) <= 100 * tol:
+        return None
+    return vt[2], centre
+
+
+def sample_plane(
+    samples: FloatArray,
+    side: tuple[FloatArray, FloatArray],
+    other: tuple[FloatArray, FloatArray],
+    tol: float,
+) -> tuple[FloatArray, FloatArray]:
+    """The plane (normal, point) of the triangle's ``samples`` (7, 3: corners, probes)
+    nearer the plane ``side`` than the plane ``other`` (:func:`plane_fit`), if it is
+    within 12 deg of ``side``'s; else ``side``."""
+    n_side, p_side = side
+    n_other, p_other = other
+    mine = [
+        x
+        for x in samples
+        if np.all(np.isfinite(x)) and abs((x - p_side) @ n_side) < abs((x - p_other) @ n_other)
+    ]
+    fit = plane_fit(np.array(mine).reshape(-1, 3), tol)
+    if fit is None:
+        return side
+    normal = fit[0] if fit[0] @ n_side >= 0 else -fit[0]
+    if normal @ n_side < SAME_SIDE_COS:
+        return side
+    return normal, fit[1]
 
 
 def _ruled(
@@ -171,8 +223,10 @@ def unfold_reference(
     normals: dict[int, FloatArray] = {}
     sizes: dict[int, float] = {}
     dists: dict[int, FloatArray] = {}
+    offs: dict[int, float] = {}
     rough: set[int] = set()
     slight: set[int] = set()
+    planar: set[int] = set()
     kinked_vertices: set[int] = set()
     for t, (a, b, c) in enumerate(tris):
         p0, p1, p2 = points[a], points[b], points[c]
@@ -187,17 +241,48 @@ def unfold_reference(
         if miss > KINK * sizes[t]:
             kinked_vertices.update(int(v) for v in (a, b, c))
         finite = dists[t][np.isfinite(dists[t])]
-        if finite.size and float(finite.max()) > ROUGH * sizes[t]:
+        worst = float(finite.max()) if finite.size else 0.0
+        offs[t] = worst / sizes[t] if sizes[t] > 0 else np.nan
+        if worst > ROUGH * sizes[t]:
             rough.add(t)
-        if finite.size and float(finite.max()) > SLIGHT * sizes[t]:
+        if worst > SLIGHT * sizes[t]:
             slight.add(t)
+        if worst <= PLANAR * sizes[t] and np.all(np.isfinite(normals[t])):
+            planar.add(t)
+    # a flat triangle not planar whose plane differs from the flattest flat triangle's at
+    # a vertex with planar triangles, and which is a piece of one plane but for that
+    # corner, lends that vertex no plane (a sliver across a crease)
+    flat_at: dict[int, list[int]] = {}
+    for t, corners in enumerate(tris):
+        if t not in slight and np.all(np.isfinite(normals[t])):
+            for v in corners:
+                flat_at.setdefault(int(v), []).append(t)
+    refused: set[tuple[int, int]] = set()
+    for v, ts in flat_at.items():
+        if not any(t in planar for t in ts) or all(t in planar for t in ts):
+            continue
+        flattest = min(ts, key=lambda t: (offs[t], t))
+        for t in ts:
+            if t in planar or float(normals[t] @ normals[flattest]) >= CREASE_COS:
+                continue
+            # ... where the rest of the triangle (its other corners, its probes) is a
+            # piece of one plane
+            rest = [points[w] for w in tris[t] if w != v] + list(probes[t])
+            if plane_fit(np.array(rest), PLANAR * sizes[t]) is not None:
+                refused.add((t, v))
+    slivers = {t for t, _ in refused}
     # a vertex's plane: from its flat triangles, or where it has none from its smooth ones
     flat_sum = np.zeros_like(points, dtype=np.float64)
     smooth_sum = np.zeros_like(points, dtype=np.float64)
+    has_planar = np.zeros(points.shape[0], dtype=bool)
     for t, corners in enumerate(tris):
+        if t in planar:
+            has_planar[corners] = True
         if t in rough or not np.all(np.isfinite(normals[t])):
             continue
         for v in corners:
+            if (t, int(v)) in refused:
+                continue
             (smooth_sum if t in slight else flat_sum)[v] += normals[t] * sizes[t] ** 2
     has_flat = np.any(flat_sum != 0.0, axis=1, keepdims=True)
     vertex_sum = np.where(has_flat, flat_sum, smooth_sum)
@@ -220,11 +305,11 @@ def unfold_reference(
                         best, borrowed[v] = off, vertex_n[w]
     vertex_n = borrowed
     out = {}
-    if not slight:
+    if not slight and not slivers:
         return out
     # the triangles whose corners' planes differ: never a side's smooth neighbours
     differ = set()
-    for t in slight:
+    for t in slight | slivers:
         cn = vertex_n[tris[t]]
         if any(float(cn[i] @ cn[0]) < CREASE_COS for i in (1, 2)):
             differ.add(t)
@@ -265,7 +350,7 @@ def unfold_reference(
 
         return cloud
 
-    for t in sorted(slight):
+    for t in sorted(slight | slivers):
         corner_n = vertex_n[tris[t]]
         if not np.all(np.isfinite(corner_n)):
             continue
@@ -281,6 +366,7 @@ def unfold_reference(
             cloud_of(t),
             curved_side,
             near_kink,
+            [bool(has_planar[v]) for v in tris[t]],
         )
         if found is not None:
             out[t] = found

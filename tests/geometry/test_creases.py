@@ -24,7 +24,9 @@ from adaproj_edge.geometry.creases import (
 )
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import grid_triangles
+from adaproj_edge.warp.warpmap import Grid
 from tests.geometry.crease_reference import crease_groups, side_plane, unfold_reference
+from tests.warp.random_surfaces import Turned
 
 Reference = dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]]]
 
@@ -191,3 +193,57 @@ def test_a_crease_meeting_the_mesh_s_outline_agrees_triangle_by_triangle() -> No
     crossed = np.flatnonzero(seen & (side.min(axis=1) != side.max(axis=1)))
     missed = [int(t) for t in crossed if t not in want]
     assert len(missed) <= 3, missed
+
+
+def wall_planes(analytic: Turned) -> list[tuple[FloatArray, FloatArray]]:
+    """The two walls of a :class:`~adaproj_edge.geometry.analytic.Corner` turned about the
+    projector: (unit normal, a point) each, written out from its definition (walls
+    through the crease at ``half_angle`` to the axis)."""
+    inner, rot = analytic.inner, np.asarray(analytic.rot)
+    a = inner.half_angle
+    out = []
+    for side in (-1.0, 1.0):
+        tangent = np.array([side * np.sin(a), 0.0, -np.cos(a) if inner.concave else np.cos(a)])
+        n = np.cross(tangent, [0.0, 1.0, 0.0])
+        out.append((rot @ (n / np.linalg.norm(n)), rot @ np.array([inner.x0, 0.0, inner.z0])))
+    return out
+
+
+@pytest.mark.parametrize(
+    ("off", "yaw"),
+    [(-0.5, 33.0), (-1.0, 33.0), (0.5, -33.0)],
+    ids=["half-px", "one-px", "mirrored"],
+)
+def test_a_wall_seen_grazing_within_one_cell_is_unfolded_onto_its_plane(
+    off: float, yaw: float
+) -> None:
+    """A convex 74 deg corner, one wall 4 deg from grazing and seen only inside the
+    column of cells the crease runs through (default 20x20 grid, crease ``off`` px from
+    the middle line). Its triangles are chords across the crease, huge on the surface:
+    the other wall's sliver leaves some of them within ``SLIGHT`` of their plane, their
+    planes outweighed the other wall's at the crease's vertices, and no triangle was
+    unfolded (the display blended the grazing wall with the other wall's triangles:
+    mean angle 0.04 at half a pixel, 2.4 at one). Every triangle the crease crosses is
+    unfolded now (as the per-triangle reading of the rules unfolds it), and its unfolded
+    corners lie on one wall's plane (computed here from the corner's definition), as the
+    development puts them."""
+    from tests.render.test_crease_display import corner_on_line
+
+    analytic = corner_on_line(37.0, False, off, yaw, 0.0, False)
+    surface = simulate_surface(analytic)
+    uv = Grid().vertices(surface.projector).reshape(-1, 2)
+    tris = grid_triangles(20, 20)
+    got, want, points = unfold_both(surface, uv, tris)
+    assert_same_planes(got, want, atol=1e-9)
+    seen = np.isfinite(points).all(axis=1)[tris].all(axis=1)
+    side = analytic.patch(np.nan_to_num(points))[tris]
+    crossed = np.flatnonzero(seen & (side.min(axis=1) != side.max(axis=1)))
+    assert crossed.size >= 20
+    assert got.folded[crossed].all(), crossed[~got.folded[crossed]]
+    walls = wall_planes(analytic)
+    for t in crossed:
+        n, p = max(walls, key=lambda w: abs(float(w[0] @ got.normal_a[t])))
+        # float32 surface points 2-6 m away: ~1e-6 m each; the sliver's corners, a
+        # millimetre from the crease, turned about it (a plane fitted over >= 2 cm
+        # is within ~1e-4 rad): the corners lie on the wall within a few micrometres
+        np.testing.assert_allclose((got.points[t] - p) @ n, 0.0, atol=1e-5)
