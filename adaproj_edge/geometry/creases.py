@@ -148,7 +148,22 @@ def unfold_creases(
     tri_pts = points[tris]
     xs = surface.points_at(crease_probes(tri_uv)) if probes is None else probes  # (T, 4, 3)
     normals, area2 = planes_first(corners_first(tri_pts))
-    return unfold_measured(tris, points, tri_pts, normals, area2, xs.transpose(2, 1, 0))
+    return unfold_measured(
+        tris, points, tri_pts, normals, area2, xs.transpose(2, 1, 0), rule=may_rule_on(surface)
+    )
+
+
+def may_rule_on(surface: Surface) -> bool:
+    """Whether a straight crease between curved sides is looked for on ``surface``
+    (:mod:`~adaproj_edge.geometry.ruled_crease`): not on one measured by a depth sensor
+    (its meta's ``source`` is ``"depth"``). Its sides' patches must explain the surface
+    to :data:`RULED_FIT` of a triangle's size (tens of micrometres on the device's
+    grid) and mend a shift of that order, while sensed depth is known to millimetres
+    (the sensor's subpixel steps and noise): what a patch fits so between its nodes is
+    the lattice's own interpolant, not a crease (a bumpy wall's sessions: 0 or 1 of
+    ~75 candidates per mesh found, the whole budget of tries spent on every mesh, a
+    third of the mesh's time; the recorded real frames: none found)."""
+    return surface.meta.get("source") != "depth"
 
 
 def unfold_measured(
@@ -159,12 +174,14 @@ def unfold_measured(
     area2: FloatArray,
     probes: FloatArray,
     may_rule: NDArray[np.bool_] | None = None,
+    rule: bool = True,
 ) -> Unfolding:
     """:func:`unfold_creases` of triangles whose corners ``tri_pts`` (T, 3, 3), unit
     normals (3, T) and twice the areas (T,) (:func:`~adaproj_edge.geometry.triangles.
     planes_first`) and surface at the probes (3, 4, T) (component-first) are known.
     ``may_rule`` (T,): where the sides' patches may be tried (a straight crease between
-    curved sides, :mod:`~adaproj_edge.geometry.ruled_crease`; None: everywhere)."""
+    curved sides, :mod:`~adaproj_edge.geometry.ruled_crease`; None: everywhere);
+    ``rule``: whether they are tried at all (:func:`may_rule_on`)."""
     size = np.sqrt(area2)
     # the probes' distances (4, T) to their triangle's plane
     signed = (
@@ -254,7 +271,7 @@ def unfold_measured(
     curved_side = ~np.all(has_flat[tris[cand]], axis=1)
     eligible = np.any(seen, axis=1) & sharp
     unexplained = rough_c & ~straight & ~curved_crease
-    retry = np.flatnonzero(eligible & (curved_side | unexplained))
+    retry = np.flatnonzero(eligible & (curved_side | unexplained) & rule)
     if retry.size:
         # only next to a kink: a surface smooth at the grid's scale there (sensed depth,
         # smoothed across a jump: rough, its corners' planes far apart, yet no crease)

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
-from adaproj_edge.geometry.creases import unfold_measured
+from adaproj_edge.geometry.creases import may_rule_on, unfold_measured
 from adaproj_edge.geometry.planes import on_planes, plane_equations
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import (
@@ -331,6 +331,7 @@ class MeshGeometry:
             area2[rows],
             probes[:, :, rows],
             None if may_rule is None else may_rule[rows],
+            may_rule_on(surface),
         )
         mine, mine_n = corners[:, :, rows], normals[:, rows]
         folded = np.flatnonzero(unfolding.folded)
