@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
+from adaproj_edge.geometry.planes import on_planes, plane_equations
 from adaproj_edge.geometry.ruled_crease import ruled_planes
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
@@ -149,21 +150,53 @@ def unfold_creases(
     xs = surface.points_at(crease_probes(tri_uv)) if probes is None else probes  # (T, 4, 3)
     normals, area2 = planes_first(corners_first(tri_pts))
     return unfold_measured(
-        tris, points, tri_pts, normals, area2, xs.transpose(2, 1, 0), rule=may_rule_on(surface)
+        tris,
+        points,
+        tri_pts,
+        normals,
+        area2,
+        xs.transpose(2, 1, 0),
+        ruled_triangles(surface, points, tris),
     )
 
 
-def may_rule_on(surface: Surface) -> bool:
-    """Whether a straight crease between curved sides is looked for on ``surface``
-    (:mod:`~adaproj_edge.geometry.ruled_crease`): not on one measured by a depth sensor
-    (its meta's ``source`` is ``"depth"``). Its sides' patches must explain the surface
-    to :data:`RULED_FIT` of a triangle's size (tens of micrometres on the device's
-    grid) and mend a shift of that order, while sensed depth is known to millimetres
-    (the sensor's subpixel steps and noise): what a patch fits so between its nodes is
-    the lattice's own interpolant, not a crease (a bumpy wall's sessions: 0 or 1 of
-    ~75 candidates per mesh found, the whole budget of tries spent on every mesh, a
-    third of the mesh's time; the recorded real frames: none found)."""
-    return surface.meta.get("source") != "depth"
+def sensed(surface: Surface) -> bool:
+    """Whether ``surface`` was measured by a depth sensor (its meta's ``source`` is
+    ``"depth"``): known to the sensor's millimetres, except on the planes it was
+    snapped to (:func:`~adaproj_edge.geometry.planes.snap_planes`)."""
+    return surface.meta.get("source") == "depth"
+
+
+def ruled_triangles(
+    surface: Surface, points: FloatArray, tris: IntArray
+) -> NDArray[np.bool_] | None:
+    """Where (T,) a straight crease between curved sides may be looked for among the
+    triangles ``tris`` (T, 3) of ``points`` (N, 3) on ``surface``
+    (:mod:`~adaproj_edge.geometry.ruled_crease`; the ``may_rule`` of
+    :func:`unfold_measured`): everywhere (None) on a surface known exactly; on a
+    :func:`sensed` one only between two of the planes it was snapped to: where the
+    triangles at its corners have corners on two different planes.
+
+    The sides' patches must explain a side to :data:`RULED_FIT` of a triangle's size
+    (tens of micrometres on the device's grid), and sensed depth is known to
+    millimetres (the sensor's subpixel steps and noise) except on its snapped planes
+    (to ~1e-7 of their depth): elsewhere what a patch fits so between the lattice's
+    nodes is its own interpolant, not a crease. On a bumpy wall's sessions every mesh
+    spent its whole budget of tries there (0 or 1 of ~75 candidates found, a third of
+    the mesh's time); between a snapped corner's walls the crease is found as before
+    (its triangles' corners in the lattice cells across the crease lie on neither)."""
+    if not sensed(surface):
+        return None
+    equations = plane_equations(surface.meta)
+    if equations.shape[0] < 2:
+        return np.zeros(tris.shape[0], dtype=bool)
+    on = np.any(on_planes(points, equations)[tris], axis=1)  # (T, k): a corner on each
+    # each vertex: the planes its triangles have corners on; each triangle: its corners'
+    near = np.zeros((points.shape[0], equations.shape[0]), dtype=bool)
+    for k in range(3):
+        np.logical_or.at(near, tris[:, k], on)
+    out: NDArray[np.bool_] = np.count_nonzero(np.any(near[tris], axis=1), axis=1) >= 2
+    return out
 
 
 def unfold_measured(
@@ -174,14 +207,12 @@ def unfold_measured(
     area2: FloatArray,
     probes: FloatArray,
     may_rule: NDArray[np.bool_] | None = None,
-    rule: bool = True,
 ) -> Unfolding:
     """:func:`unfold_creases` of triangles whose corners ``tri_pts`` (T, 3, 3), unit
     normals (3, T) and twice the areas (T,) (:func:`~adaproj_edge.geometry.triangles.
     planes_first`) and surface at the probes (3, 4, T) (component-first) are known.
     ``may_rule`` (T,): where the sides' patches may be tried (a straight crease between
-    curved sides, :mod:`~adaproj_edge.geometry.ruled_crease`; None: everywhere);
-    ``rule``: whether they are tried at all (:func:`may_rule_on`)."""
+    curved sides, :mod:`~adaproj_edge.geometry.ruled_crease`; None: everywhere)."""
     size = np.sqrt(area2)
     # the probes' distances (4, T) to their triangle's plane
     signed = (
@@ -271,7 +302,7 @@ def unfold_measured(
     curved_side = ~np.all(has_flat[tris[cand]], axis=1)
     eligible = np.any(seen, axis=1) & sharp
     unexplained = rough_c & ~straight & ~curved_crease
-    retry = np.flatnonzero(eligible & (curved_side | unexplained) & rule)
+    retry = np.flatnonzero(eligible & (curved_side | unexplained))
     if retry.size:
         # only next to a kink: a surface smooth at the grid's scale there (sensed depth,
         # smoothed across a jump: rough, its corners' planes far apart, yet no crease)
