@@ -44,7 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
-from adaproj_edge.geometry.planes import on_planes, plane_equations
+from adaproj_edge.geometry.planes import plane_equations
 from adaproj_edge.geometry.ruled_crease import ruled_planes
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
@@ -173,30 +173,22 @@ def ruled_triangles(
     """Where (T,) a straight crease between curved sides may be looked for among the
     triangles ``tris`` (T, 3) of ``points`` (N, 3) on ``surface``
     (:mod:`~adaproj_edge.geometry.ruled_crease`; the ``may_rule`` of
-    :func:`unfold_measured`): everywhere (None) on a surface known exactly; on a
-    :func:`sensed` one only between two of the planes it was snapped to: where the
-    triangles at its corners have corners on two different planes.
+    :func:`unfold_measured`): everywhere (None) on a surface known exactly, or on a
+    :func:`sensed` one snapped to two planes or more; nowhere on another sensed one.
 
     The sides' patches must explain a side to :data:`RULED_FIT` of a triangle's size
     (tens of micrometres on the device's grid), and sensed depth is known to
     millimetres (the sensor's subpixel steps and noise) except on its snapped planes
-    (to ~1e-7 of their depth): elsewhere what a patch fits so between the lattice's
-    nodes is its own interpolant, not a crease. On a bumpy wall's sessions every mesh
-    spent its whole budget of tries there (0 or 1 of ~75 candidates found, a third of
-    the mesh's time); between a snapped corner's walls the crease is found as before
-    (its triangles' corners in the lattice cells across the crease lie on neither)."""
-    if not sensed(surface):
+    (to ~1e-7 of their depth): with fewer than two of them, no crease has both sides
+    known so, and what a patch fits between the lattice's nodes is its own
+    interpolant. On a bumpy wall's sessions (one plane) every mesh spent its whole
+    budget of tries for nothing (0 or 1 of ~75 candidates found, a third of the mesh's
+    time). Between two snapped walls everything is tried as before: the corner's
+    crease triangles, in the lattice cells across the crease, have corners on neither
+    plane, and how far those reach depends on how the planes were fitted."""
+    if not sensed(surface) or plane_equations(surface.meta).shape[0] >= 2:
         return None
-    equations = plane_equations(surface.meta)
-    if equations.shape[0] < 2:
-        return np.zeros(tris.shape[0], dtype=bool)
-    on = np.any(on_planes(points, equations)[tris], axis=1)  # (T, k): a corner on each
-    # each vertex: the planes its triangles have corners on; each triangle: its corners'
-    near = np.zeros((points.shape[0], equations.shape[0]), dtype=bool)
-    for k in range(3):
-        np.logical_or.at(near, tris[:, k], on)
-    out: NDArray[np.bool_] = np.count_nonzero(np.any(near[tris], axis=1), axis=1) >= 2
-    return out
+    return np.zeros(tris.shape[0], dtype=bool)
 
 
 def unfold_measured(
