@@ -323,8 +323,8 @@ class MeshGeometry:
         key = f"{grid.cols}x{grid.rows}:".encode() + np.packbits(keep).tobytes()
         topo = make() if cache is None else cache.topology(key, make)
         rows = topo.rows
-        # (on sensed depth, only where the snapped planes hold the sides: as the
-        # display's unfolding of the grid looks, render.seams.grid_unfolding)
+        # (on sensed depth, only with two snapped planes or more: as the display's
+        # unfolding of the grid looks, render.seams.grid_unfolding)
         sides_known = ruled_triangles(surface, pts, all_tris)
         rule = may_rule if sides_known is None else sides_known
         if may_rule is not None and sides_known is not None:
