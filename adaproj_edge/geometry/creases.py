@@ -54,6 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
+from adaproj_edge.geometry.planes import plane_equations
 from adaproj_edge.geometry.ruled_crease import ruled_planes
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
@@ -159,7 +160,46 @@ def unfold_creases(
     tri_pts = points[tris]
     xs = surface.points_at(crease_probes(tri_uv)) if probes is None else probes  # (T, 4, 3)
     normals, area2 = planes_first(corners_first(tri_pts))
-    return unfold_measured(tris, points, tri_pts, normals, area2, xs.transpose(2, 1, 0))
+    return unfold_measured(
+        tris,
+        points,
+        tri_pts,
+        normals,
+        area2,
+        xs.transpose(2, 1, 0),
+        ruled_triangles(surface, points, tris),
+    )
+
+
+def sensed(surface: Surface) -> bool:
+    """Whether ``surface`` was measured by a depth sensor (its meta's ``source`` is
+    ``"depth"``): known to the sensor's millimetres, except on the planes it was
+    snapped to (:func:`~adaproj_edge.geometry.planes.snap_planes`)."""
+    return surface.meta.get("source") == "depth"
+
+
+def ruled_triangles(
+    surface: Surface, points: FloatArray, tris: IntArray
+) -> NDArray[np.bool_] | None:
+    """Where (T,) a straight crease between curved sides may be looked for among the
+    triangles ``tris`` (T, 3) of ``points`` (N, 3) on ``surface``
+    (:mod:`~adaproj_edge.geometry.ruled_crease`; the ``may_rule`` of
+    :func:`unfold_measured`): everywhere (None) on a surface known exactly, or on a
+    :func:`sensed` one snapped to two planes or more; nowhere on another sensed one.
+
+    The sides' patches must explain a side to :data:`RULED_FIT` of a triangle's size
+    (tens of micrometres on the device's grid), and sensed depth is known to
+    millimetres (the sensor's subpixel steps and noise) except on its snapped planes
+    (to ~1e-7 of their depth): with fewer than two of them, no crease has both sides
+    known so, and what a patch fits between the lattice's nodes is its own
+    interpolant. On a bumpy wall's sessions (one plane) every mesh spent its whole
+    budget of tries for nothing (0 or 1 of ~75 candidates found, a third of the mesh's
+    time). Between two snapped walls everything is tried as before: the corner's
+    crease triangles, in the lattice cells across the crease, have corners on neither
+    plane, and how far those reach depends on how the planes were fitted."""
+    if not sensed(surface) or plane_equations(surface.meta).shape[0] >= 2:
+        return None
+    return np.zeros(tris.shape[0], dtype=bool)
 
 
 def unfold_measured(

@@ -58,6 +58,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
+from adaproj_edge.geometry.creases import sensed
 from adaproj_edge.geometry.planes import plane_equations
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
@@ -444,13 +445,18 @@ def adaptive_mesh(
 def mesh_key(surface: Surface, grid: Grid, refine: bool) -> bytes:
     """What the adaptive mesh of ``surface`` on ``grid`` depends on, as a cache key: the
     surface's points (a digest of their bytes), its lattice's shape, the projector and
-    the grid, and the planes snapped on it (the mesh's :attr:`~MeshGeometry.planar`)."""
+    the grid, the planes snapped on it (the mesh's :attr:`~MeshGeometry.planar`) and
+    whether it was sensed (:func:`~adaproj_edge.geometry.creases.sensed`: where its
+    mesh looks for ruled creases)."""
     proj = surface.projector
     points = np.ascontiguousarray(surface.points)
     digest = hashlib.blake2b(points.tobytes(), digest_size=16)
     digest.update(np.ascontiguousarray(proj.K, dtype=np.float64).tobytes())
     digest.update(np.ascontiguousarray(plane_equations(surface.meta), dtype=np.float64).tobytes())
-    head = f"adaptive:{refine}:{grid.cols}x{grid.rows}:{points.shape}:{proj.width}x{proj.height}:"
+    head = (
+        f"adaptive:{refine}:{sensed(surface)}:{grid.cols}x{grid.rows}:{points.shape}:"
+        f"{proj.width}x{proj.height}:"
+    )
     return head.encode() + digest.digest()
 
 

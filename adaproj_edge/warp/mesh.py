@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
-from adaproj_edge.geometry.creases import unfold_measured
+from adaproj_edge.geometry.creases import ruled_triangles, unfold_measured
 from adaproj_edge.geometry.developed import developed_lengths
 from adaproj_edge.geometry.planes import on_planes, plane_equations
 from adaproj_edge.geometry.surface import Surface
@@ -337,6 +337,12 @@ class MeshGeometry:
         key = f"{grid.cols}x{grid.rows}:".encode() + np.packbits(keep).tobytes()
         topo = make() if cache is None else cache.topology(key, make)
         rows = topo.rows
+        # (on sensed depth, only with two snapped planes or more: as the display's
+        # unfolding of the grid looks, render.seams.grid_unfolding)
+        sides_known = ruled_triangles(surface, pts, all_tris)
+        rule = may_rule if sides_known is None else sides_known
+        if may_rule is not None and sides_known is not None:
+            rule = may_rule & sides_known
         unfolding = unfold_measured(
             topo.cand,
             pts,
@@ -344,7 +350,7 @@ class MeshGeometry:
             normals[:, rows],
             area2[rows],
             probes[:, :, rows],
-            None if may_rule is None else may_rule[rows],
+            None if rule is None else rule[rows],
         )
         mine, mine_n = corners[:, :, rows], normals[:, rows]
         folded = np.flatnonzero(unfolding.folded)

@@ -104,3 +104,59 @@ def test_a_surface_rough_all_over_is_given_up_on(monkeypatch: pytest.MonkeyPatch
     assert retries and max(retries) > 400, retries  # many candidates ...
     # ... of which few are tried: at most MISSES each mesh, two patches each
     assert 0 < len(patches) <= 2 * ruled_crease.MISSES * len(retries) < sum(retries) / 4
+
+
+def test_a_sensed_surface_is_not_searched_for_ruled_creases(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # a cone wall meeting a plane along a ruling (tools/stress_warp.py seed 3 case 51):
+    # exact, its ruled crease is found; the same points as a depth sensor's surface
+    # are known only to its millimetres, and no candidate is tried, by the warp's mesh
+    # and by the display's unfolding alike
+    from dataclasses import replace
+
+    from adaproj_edge.geometry import creases
+    from adaproj_edge.geometry.analytic import simulate_surface
+    from adaproj_edge.render.seams import grid_unfolding
+    from adaproj_edge.warp.mesh import MeshGeometry
+    from adaproj_edge.warp.warpmap import Grid
+    from tests.warp.random_surfaces import draw_case
+
+    exact = simulate_surface(draw_case(3, 51).surface)
+    grid = Grid(20, 20)
+    assert MeshGeometry.build(exact, grid).ruled.any()
+    tried: list[int] = []
+    ruled = creases.ruled_planes
+
+    def counted(retry: np.ndarray, *args: Any) -> Any:
+        tried.append(int(retry.size))
+        return ruled(retry, *args)
+
+    monkeypatch.setattr(creases, "ruled_planes", counted)
+    sensed = replace(exact, meta={**exact.meta, "source": "depth"})
+    mesh = MeshGeometry.build(sensed, grid)
+    depth = mesh.points[:, 2].reshape(mesh.grid_uv.shape[:2])
+    shown = grid_unfolding(mesh.grid_uv, depth, exact.projector, sensed)
+    assert not tried and not mesh.ruled.any() and not shown.ruled.any()
+    assert mesh.folded.any()  # (its creases are unfolded with their corners' planes)
+
+
+def test_on_sensed_depth_ruled_creases_are_looked_for_only_with_two_snapped_planes() -> None:
+    # a crease with both sides known to a patch's tolerance needs two snapped planes;
+    # with one (a bump on a snapped wall) or none, nowhere; on exact surfaces everywhere
+    from dataclasses import replace
+
+    from adaproj_edge.geometry.analytic import simulate_surface
+    from adaproj_edge.geometry.creases import ruled_triangles
+    from adaproj_edge.geometry.triangles import grid_triangles
+
+    points = np.zeros((12, 3))
+    tris = grid_triangles(2, 3)
+    n = np.sqrt(1.25)
+    planes = [[0.5 / n, 0.0, 1 / n, 1 / n], [-0.5 / n, 0.0, 1 / n, 1 / n]]
+    exact = simulate_surface("corner", step=16)
+    assert ruled_triangles(exact, points, tris) is None
+    for listed, everywhere in ((planes, True), (planes[:1], False), ([], False)):
+        sensed = replace(exact, meta={"source": "depth", "plane_equations": listed})
+        got = ruled_triangles(sensed, points, tris)
+        assert (got is None) if everywhere else (got is not None and not got.any())
