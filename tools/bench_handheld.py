@@ -72,12 +72,17 @@ def simulate(out: Path, surface: str, hand: HandMotion, seed: int) -> Path:
     return out
 
 
-def replay(path: Path, stabilise: bool, settings: AppSettings | None = None) -> dict[str, Any]:
-    """The replay's summary (handheld section and timings)."""
-    options = ReplayOptions(settings or AppSettings(), stabilise=stabilise)
+def replay(
+    path: Path, stabilise: bool, settings: AppSettings | None = None, quiet: bool = False
+) -> dict[str, Any]:
+    """The replay's summary (handheld section and timings; ``quiet``: the hand-held
+    figures only, no distortion scores, and no line of its own)."""
+    options = ReplayOptions(settings or AppSettings(), stabilise=stabilise, distortion=not quiet)
     t = time.perf_counter()
     s = replay_session(path, None, options)
-    print(f"    ({path.name}, stabilise={stabilise}: {time.perf_counter() - t:.0f} s)", flush=True)
+    if not quiet:
+        took = time.perf_counter() - t
+        print(f"    ({path.name}, stabilise={stabilise}: {took:.0f} s)", flush=True)
     return s
 
 
@@ -295,13 +300,15 @@ def sweep(
                     name = _wall_mesh(tmp, 35.0) if surface == "wall-yaw" else surface
                     hand = HandMotion(seconds, seed=seed, tremor_deg=tremor, roll_deg=roll)
                     path = simulate(tmp / "sweep.mcap", name, hand, seed)
-                    on = replay(path, True)["handheld"]
+                    on = replay(path, True, quiet=True)["handheld"]
                     where = f"{label}, tremor {tremor}, roll {roll}, seed {seed}"
                     figures = {
                         f"upright max, {label}": on["upright_error_deg_max"],
                         f"jitter ratio, {label}": on["jitter_ratio"],
                         "motion-to-photon p95 ms": on["motion_to_photon_ms"]["p95"],
                     }
+                    line = ", ".join(f"{k} {v}" for k, v in figures.items())
+                    print(f"      {where}: {line}", flush=True)
                     for k, v in figures.items():
                         if v is not None and v >= worst_f.get(k, (-1.0, ""))[0]:
                             worst_f[k] = (float(v), where)

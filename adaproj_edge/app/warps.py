@@ -50,7 +50,7 @@ from adaproj_edge.render.reproject import inset_warp
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import WarpCache
 from adaproj_edge.warp.planner import ContentFreeWarp, PlanSettings, WarpPlanner
-from adaproj_edge.warp.posecache import PoseCache, pose_key
+from adaproj_edge.warp.posecache import PoseCache, pose_key, surface_turn
 from adaproj_edge.warp.warpmap import Warp
 
 log = logging.getLogger(__name__)
@@ -183,11 +183,16 @@ class WarpSource:
         key += content_size
         t_lookup = self.telemetry.times.now()
 
+        def unturned(e: PoseEntry) -> bool:
+            # depths within a percent let the surface turn in P by a degree or two (the
+            # device turned before a wall turned away): its warp would tip the content
+            return surface_turn(surface.points, e.depth) <= s.cache_turn_rad
+
         def fits(e: PoseEntry) -> bool:
             # the same "up", and made for content of this size: an entry found by its
             # surface alone may be another item's (its content coordinates another scale)
             same_up = float(np.linalg.norm(e.up - up)) <= s.up_match_rad
-            return same_up and e.warp.content_size == content_size
+            return same_up and e.warp.content_size == content_size and unturned(e)
 
         entry = (
             self.poses.get(key, depth, s.cache_match_rel, min_frames=min_frames, accept=fits)
@@ -205,7 +210,8 @@ class WarpSource:
             # upright again, no new solve
             def near(e: PoseEntry) -> bool:
                 turned = float(np.linalg.norm(e.orientation - orientation))
-                return turned <= s.orientation_bin_rad and e.warp.content_size == content_size
+                near = turned <= s.orientation_bin_rad and e.warp.content_size == content_size
+                return near and unturned(e)
 
             base = self.poses.nearest(depth, s.cache_match_rel, min_frames=min_frames, accept=near)
             if base is not None:

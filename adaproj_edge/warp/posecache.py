@@ -6,12 +6,17 @@ bins) with a compact signature of the surface (the median depth of a 3x3 split o
 the lattice, in ``depth_bin_m`` bins). A key match is only a candidate: before reuse
 the cached entry's surface is compared with the current one node by node
 (:func:`surfaces_match`), so two different scenes that share a key never swap
-warps. The cache holds any entry with a ``depth`` lattice and a ``frames`` count
-(:class:`Posed`). At most ``size`` entries are kept (least recently used go first).
+warps. Depths that agree within a percent still let the surface turn in frame P by a
+degree or two (the device turned in front of a wall turned away from it): a warp made
+for it and shown now tips the content by as much, so the caller also compares the
+planes fitted to both (:func:`surface_turn`). The cache holds any entry with a
+``depth`` lattice and a ``frames`` count (:class:`Posed`). At most ``size`` entries
+are kept (least recently used go first).
 """
 
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
 from collections.abc import Callable
 from typing import Generic, Protocol, TypeVar
@@ -19,7 +24,7 @@ from typing import Generic, Protocol, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from adaproj_edge.arrays import FloatArray
+from adaproj_edge.arrays import Float32Array, FloatArray
 
 Key = tuple[int, ...]
 
@@ -58,6 +63,41 @@ def surfaces_match(now: FloatArray, then: FloatArray, max_rel: float, min_overla
         return False
     rel = np.abs(now[both] - then[both]) / then[both]
     return bool(np.median(rel) <= max_rel)
+
+
+MIN_FIT_NODES = 12  # nodes known in both for :func:`surface_turn` to tell
+
+
+def surface_turn(points: FloatArray | Float32Array, then: FloatArray) -> float:
+    """The angle (radians) between the planes fitted to two estimates of a surface on
+    the same lattice: ``points`` (R, C, 3), the current one in frame P, and ``then``
+    (R, C), an earlier lattice depth along the same rays (NaN where unknown); inf when
+    they share too few nodes to tell, or only nodes on a line.
+
+    A plane ``n . X = 1`` has inverse depth linear in the normalised image
+    coordinates (``n . (x/z, y/z, 1) = 1/z``), so each fit is one small least-squares
+    solve, and the angle between the two ``n`` is the turn of the surface in frame P:
+    a turn of the device, whatever the surface's distance (a move along its normal only
+    scales ``n``). A fine lattice is fitted at about 21x21 of its nodes.
+    """
+    if points.shape[:2] != then.shape:
+        return math.inf
+    k = max(1, (min(then.shape) - 1) // 20)
+    p = points[::k, ::k].reshape(-1, 3).astype(np.float64)
+    z_then = then[::k, ::k].reshape(-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rays = p / p[:, 2:3]
+    both = np.isfinite(rays).all(axis=1) & (p[:, 2] > 0) & np.isfinite(z_then) & (z_then > 0)
+    if both.sum() < MIN_FIT_NODES:
+        return math.inf
+    A = rays[both]
+    inv = np.stack([1.0 / p[both, 2], 1.0 / z_then[both]], axis=1)
+    n, _, rank, _ = np.linalg.lstsq(A, inv, rcond=None)  # (3, 2): both fits at once
+    if rank < 3:  # the nodes on one line: no plane to tell
+        return math.inf
+    a, b = n[:, 0], n[:, 1]
+    cos = float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-300)
+    return math.acos(min(1.0, max(-1.0, cos)))
 
 
 def common_nodes(

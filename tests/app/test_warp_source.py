@@ -52,3 +52,38 @@ def test_another_up_in_front_of_the_same_surface_is_placed_not_solved() -> None:
     off.pose(s, 5, 0, o, SIZE, WarpSettings(mode="content", up=up(0.0)))
     off.pose(s, 5, 0, o, SIZE, WarpSettings(mode="content", up=up(3.0)))
     assert off.telemetry.counters["re_placed"] == 0 and off.telemetry.counters["content_free"] == 2
+
+
+def test_a_surface_turned_in_front_of_the_device_is_not_served_the_old_warp() -> None:
+    """A wall turned 35 degrees away, the device turned 0.6 degrees (the "up" the same
+    within its match): the depths still agree within the cache's percent, but the warp
+    made before would tip the content on it (1.8 degrees on a replayed hand); it is
+    solved again, neither served nor re-placed."""
+    from adaproj_edge.geometry.projector import Projector
+    from adaproj_edge.geometry.rotations import rotation_matrix
+    from adaproj_edge.geometry.surface import Surface
+    from adaproj_edge.warp.posecache import surfaces_match
+    from adaproj_edge.warp.warpmap import Grid
+
+    p = Projector.default()
+    settings = AppSettings()
+    rays = p.rays(Grid().vertices(p))
+    rays = rays / rays[..., 2:3]
+    yaw = np.radians(35.0)
+    n = np.array([np.sin(yaw), 0.0, np.cos(yaw)]) / 1.5
+
+    def wall(normal: np.ndarray) -> Surface:
+        return Surface((rays / (rays @ normal)[..., None]).astype(np.float32), p)
+
+    before, after = wall(n), wall(rotation_matrix(np.radians([0.6, 0.0, 0.0])) @ n)
+    depth = [s.points[..., 2].astype(np.float64) for s in (before, after)]
+    assert surfaces_match(depth[1], depth[0], settings.cache_match_rel, 0.97)
+    source = WarpSource(p, settings, Telemetry(100))
+    o = np.zeros(3)
+    warp = WarpSettings(mode="content", up=up(0.0))
+    first, hit = source.pose(before, 5, 0, o, SIZE, warp)
+    assert not hit and source.pose(before, 5, 0, o, SIZE, warp) == (first, True)
+    again, hit = source.pose(after, 5, 0, o, SIZE, warp)
+    counters = source.telemetry.counters
+    assert not hit and again is not first
+    assert counters["content_free"] == 2 and counters.get("re_placed", 0) == 0

@@ -75,3 +75,42 @@ def test_nearest_finds_an_entry_of_the_surface_without_counting_or_moving_it() -
     assert cache.nearest(depth * 2.0) is None
     assert (cache.hits, cache.misses, len(cache)) == (0, 0, 3)
     assert cache.get((0,), depth * 1.001) is near  # still filed where it was
+
+
+def test_a_surface_turned_in_the_projector_s_frame_is_told_by_its_fitted_plane() -> None:
+    """Depths within the match's percent still let a wall turned away from the device
+    turn in frame P by a degree (the device turned): the fitted planes tell the turn
+    (exactly for a plane: its inverse depth is linear in the normalised coordinates),
+    and a move along the normal or noise of a few millimetres does not."""
+    from adaproj_edge.geometry.rotations import rotation_matrix
+    from adaproj_edge.warp.posecache import surface_turn
+
+    K = np.array([[1400.0, 0.0, 639.5], [0.0, 1400.0, 399.5], [0.0, 0.0, 1.0]])
+    u, v = np.meshgrid(np.linspace(0, 1279, 21), np.linspace(0, 799, 21))
+    rays = np.stack([u, v, np.ones_like(u)], axis=-1) @ np.linalg.inv(K).T  # z = 1
+    yaw = np.radians(35.0)
+    n = np.array([np.sin(yaw), 0.0, np.cos(yaw)]) / 1.5  # a wall turned 35 deg, 1.5 m
+
+    def depth(normal: FloatArray) -> FloatArray:
+        out: FloatArray = 1.0 / (rays @ normal)
+        return out
+
+    points = rays * depth(n)[..., None]
+    for axis in np.eye(3):
+        turn = np.radians(0.6)
+        turned = depth(rotation_matrix(turn * axis) @ n)
+        assert surfaces_match(turned, depth(n), 0.01, 0.97)  # the depth check passes it
+        found = surface_turn(points, turned)
+        # a turn about the plane's normal leaves the plane as it is; otherwise the
+        # angle between the normals, to the solve's rounding
+        expect = np.arccos(np.clip(np.dot(rotation_matrix(turn * axis) @ n, n) / (n @ n), -1, 1))
+        assert abs(found - expect) < 1e-9
+    assert surface_turn(points, depth(1.1 * n)) < 1e-9  # moved along the normal
+    rng = np.random.default_rng(0)
+    noisy = depth(n) * (1 + rng.normal(0.0, 0.003, (21, 21)))  # 0.3 % per node
+    assert surface_turn(points, noisy) < np.radians(0.15)
+    line = depth(n).copy()
+    line[:, :-1] = np.nan  # one column left: no plane to tell
+    few = np.full_like(line, np.nan)
+    few[:3, :3] = depth(n)[:3, :3]
+    assert surface_turn(points, line) == np.inf and surface_turn(points, few) == np.inf
