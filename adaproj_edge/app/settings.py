@@ -59,7 +59,7 @@ class AppSettings:
     keep_shown_map: bool = False  # keep the float map of the frame shown (for scoring)
     history: int = 20000  # events, updates and stage times kept (oldest dropped first)
     cache_match_rel: float = 0.01  # a cached warp serves surfaces this close (median depth)
-    cache_turn_rad: float = 0.005  # and turned in frame P at most this much (fitted planes)
+    cache_turn_rad: float = 0.01  # and turned in frame P at most this much (fitted planes)
     orientation_bin_rad: float = 0.03
     depth_bin_m: float = 0.03
     up_bin_rad: float = 0.01  # "up" (gravity) in the pose cache key

@@ -55,7 +55,7 @@ def test_another_up_in_front_of_the_same_surface_is_placed_not_solved() -> None:
 
 
 def test_a_surface_turned_in_front_of_the_device_is_not_served_the_old_warp() -> None:
-    """A wall turned 35 degrees away, the device turned 0.6 degrees (the "up" the same
+    """A wall turned 35 degrees away, the device turned 1.2 degrees (the "up" the same
     within its match): the depths still agree within the cache's percent, but the warp
     made before would tip the content on it (1.8 degrees on a replayed hand); it is
     solved again, neither served nor re-placed."""
@@ -75,7 +75,7 @@ def test_a_surface_turned_in_front_of_the_device_is_not_served_the_old_warp() ->
     def wall(normal: np.ndarray) -> Surface:
         return Surface((rays / (rays @ normal)[..., None]).astype(np.float32), p)
 
-    before, after = wall(n), wall(rotation_matrix(np.radians([0.6, 0.0, 0.0])) @ n)
+    before, after = wall(n), wall(rotation_matrix(np.radians([1.2, 0.0, 0.0])) @ n)
     depth = [s.points[..., 2].astype(np.float64) for s in (before, after)]
     assert surfaces_match(depth[1], depth[0], settings.cache_match_rel, 0.97)
     source = WarpSource(p, settings, Telemetry(100))
