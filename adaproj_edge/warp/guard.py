@@ -219,6 +219,7 @@ def guard(
     margin: float = MARGIN,
     surface: Surface | None = None,
     flatten: bool = False,
+    provisional: bool = False,
 ) -> Choice:
     """Keep the content-aware warp, a blend, or the conformal warp: the one with most of
     the content-aware warp that is no worse than the conformal warp on the salient
@@ -245,6 +246,13 @@ def guard(
     surface : the surface the mesh was built from; given, a candidate the mesh finds
         better by less than :data:`SURE` is judged as the per-pixel display shows it
         (:mod:`~adaproj_edge.warp.displayed`); else by the mesh alone.
+    provisional : a flattened candidate is first judged where the warp it flattens is
+        placed (the map fixes the subject's centre with unit derivative, so the subject
+        stays about where it was), and placed - then judged again where it is placed -
+        only when that first judgement keeps it; its blends are judged at that same
+        placement, as every blend is judged at its candidate's (the device's
+        :func:`guard_grid`: a placement costs ~0.7 ms of its update, and on a bumpy
+        wall neither flattened candidate was ever kept).
 
     Returns
     -------
@@ -269,11 +277,16 @@ def guard(
     # surface)
     flatten = flatten and m_aware.size > FLATTEN_ABOVE * m_conf.size and m_conf.size > FLOOR
     if flatten:
-        flat = _flattened(mesh, va, pa, content_map, up, meta, "flattened")
+        flat = _flattened(mesh, va, pa, content_map, up, meta, "flattened", provisional)
         if flat is not None and flat[2].size < m_aware.size:
             candidates.insert(0, ("flattened", *flat))
     for name, v, p, m in candidates:
         if judge.no_worse(xy_aware if name == "content-aware" else p.apply(v), m, name):
+            if name == "flattened" and provisional:
+                placed = _placed(mesh, v, p, content_map, up, meta, name, judge)
+                if placed is None:
+                    continue
+                p = placed
             reason = "no worse in angle and size"
             if name == "flattened":
                 reason = "its size flattened over the subject, less size spread; " + reason
@@ -312,11 +325,17 @@ def guard(
         # warp's (up to the mesh's interpolation of the flattening map), so it is held
         # to no more angle error, and to the margin in size (judged where it is placed:
         # judged at the conformal warp's placement and placed only when kept, the
-        # bumps' face subject was shown at 1.14x the conformal warp's size spread)
-        flat = _flattened(mesh, vc, pc, content_map, up, meta, "conformal flattened")
-        if flat is not None and judge.no_worse(
-            flat[1].apply(flat[0]), flat[2], "conformal flattened", angle_margin=0.0
-        ):
+        # bumps' face subject was shown at 1.14x the conformal warp's size spread; so a
+        # provisional judgement keeps it only once it is placed and judged again)
+        key = "conformal flattened"
+        flat = _flattened(mesh, vc, pc, content_map, up, meta, key, provisional)
+        kept = flat is not None and judge.no_worse(
+            flat[1].apply(flat[0]), flat[2], key, angle_margin=0.0
+        )
+        if kept and provisional and flat is not None:
+            placed = _placed(mesh, flat[0], pc, content_map, up, meta, key, judge, 0.0)
+            kept, flat = placed is not None, (flat[0], placed or pc, flat[2])
+        if kept and flat is not None:
             meta.update(
                 choice="conformal flattened",
                 reason="no blend is better in both angle and size; the conformal warp "
@@ -337,20 +356,42 @@ def _flattened(
     up: FloatArray | tuple[float, float, float],
     meta: dict[str, Any],
     key: str,
+    provisional: bool = False,
 ) -> tuple[FloatArray, Placement, SubjectDistortion] | None:
     """Positions ``v`` (n, 2) with their size flattened over the subject, their placement
     and mesh measure; None when the flattening does not apply (``meta[key]`` says what
-    it gave)."""
+    it gave). ``provisional``: not placed, but measured at ``placement`` (the warp it
+    flattens was placed there), which is returned (see :func:`guard`)."""
     weight = subject_weights(mesh, placement.apply(v), content_map)
     _, log_size = triangle_distortion(mesh, v)
     vf = flattened(mesh, v, log_size, weight)
     if vf is None:
         meta[key] = {"reason": "nothing to fit, too large a rescaling, or a fold"}
         return None
-    pf = place(mesh, vf, content_map.content_size, up, placement)
+    pf = placement if provisional else place(mesh, vf, content_map.content_size, up, placement)
     m = subject_distortion(mesh, pf.apply(vf), content_map)
-    meta[key] = m.as_dict()
+    meta[key] = {**m.as_dict(), "placed": False} if provisional else m.as_dict()
     return vf, pf, m
+
+
+def _placed(
+    mesh: MeshGeometry,
+    v: FloatArray,
+    at: Placement,
+    content_map: ContentMap,
+    up: FloatArray | tuple[float, float, float],
+    meta: dict[str, Any],
+    key: str,
+    judge: _Judge,
+    angle_margin: float | None = None,
+) -> Placement | None:
+    """The placement of the flattened candidate ``v`` (n, 2) that a provisional judgement
+    at ``at`` kept (:func:`guard`), when it is still no worse there (None: it is not);
+    ``meta[key]`` then holds its measure where it is placed."""
+    p = place(mesh, v, content_map.content_size, up, at)
+    m = subject_distortion(mesh, p.apply(v), content_map)
+    meta[key] = m.as_dict()
+    return p if judge.no_worse(p.apply(v), m, key, angle_margin) else None
 
 
 class _Judge:
@@ -443,7 +484,9 @@ def guard_grid(
     # the placements of a flattened warp or a blend)
     w, h = content_map.content_size
     as_is = Placement(0.0, 1.0, np.zeros(2), np.array([0.5 * w - 0.5, 0.5 * h - 0.5]))
-    choice = guard(mesh, (flat[mesh.verts], as_is), conformal, content_map, up, flatten=True)
+    choice = guard(
+        mesh, (flat[mesh.verts], as_is), conformal, content_map, up, flatten=True, provisional=True
+    )
     if choice.meta["choice"] == "content-aware":
         return image_xy, choice.meta
     out = np.full_like(flat, np.nan)
