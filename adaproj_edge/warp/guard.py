@@ -220,6 +220,7 @@ def guard(
     surface: Surface | None = None,
     flatten: bool = False,
     provisional: bool = False,
+    memo: dict[str, Any] | None = None,
 ) -> Choice:
     """Keep the content-aware warp, a blend, or the conformal warp: the one with most of
     the content-aware warp that is no worse than the conformal warp on the salient
@@ -253,6 +254,10 @@ def guard(
         placement, as every blend is judged at its candidate's (the device's
         :func:`guard_grid`: a placement costs ~0.7 ms of its update, and on a bumpy
         wall neither flattened candidate was ever kept).
+    memo : where what is measured of the conformal warp alone (its measure, its
+        flattened candidate and what became of it) is kept for the next call with the
+        same mesh, conformal warp, content map and "up" (the device's refinements of
+        one content-free warp); not used when ``surface`` is given.
 
     Returns
     -------
@@ -263,9 +268,13 @@ def guard(
     """
     va, pa = aware
     vc, pc = conformal
-    xy_aware, xy_conf = pa.apply(va), pc.apply(vc)  # (each placed once, used again below)
+    memo = {} if memo is None or surface is not None else memo
+    xy_aware = pa.apply(va)  # (each placed once, used again below)
     m_aware = subject_distortion(mesh, xy_aware, content_map)
-    m_conf = subject_distortion(mesh, xy_conf, content_map)
+    if "conformal" not in memo:
+        xy = pc.apply(vc)
+        memo["conformal"] = xy, subject_distortion(mesh, xy, content_map)
+    xy_conf, m_conf = memo["conformal"]
     meta: dict[str, Any] = {"aware": m_aware.as_dict(), "conformal": m_conf.as_dict()}
     if m_aware.weight <= 0 or m_conf.weight <= 0:
         meta.update(choice="content-aware", reason="no salient content shows", t=1.0)
@@ -328,14 +337,11 @@ def guard(
         # bumps' face subject was shown at 1.14x the conformal warp's size spread; so a
         # provisional judgement keeps it only once it is placed and judged again)
         key = "conformal flattened"
-        flat = _flattened(mesh, vc, pc, content_map, up, meta, key, provisional)
-        kept = flat is not None and judge.no_worse(
-            flat[1].apply(flat[0]), flat[2], key, angle_margin=0.0
-        )
-        if kept and provisional and flat is not None:
-            placed = _placed(mesh, flat[0], pc, content_map, up, meta, key, judge, 0.0)
-            kept, flat = placed is not None, (flat[0], placed or pc, flat[2])
-        if kept and flat is not None:
+        meta[key] = {}  # (its place among the meta's keys, before what the judge adds)
+        if key not in memo:
+            memo[key] = _conformal_flattened(mesh, vc, pc, content_map, up, judge, provisional)
+        meta[key], kept = dict(memo[key][0]), memo[key][1]
+        if kept is not None:
             meta.update(
                 choice="conformal flattened",
                 reason="no blend is better in both angle and size; the conformal warp "
@@ -343,9 +349,35 @@ def guard(
                 "more angle error",
                 t=0.0,
             )
-            return Choice(flat[0], flat[1], 0.0, meta)
+            return Choice(kept[0], kept[1], 0.0, meta)
     meta.update(choice="conformal", reason="no blend is better in both angle and size", t=0.0)
     return Choice(vc, pc, 0.0, meta)
+
+
+def _conformal_flattened(
+    mesh: MeshGeometry,
+    vc: FloatArray,
+    pc: Placement,
+    content_map: ContentMap,
+    up: FloatArray | tuple[float, float, float],
+    judge: _Judge,
+    provisional: bool,
+) -> tuple[dict[str, Any], tuple[FloatArray, Placement] | None]:
+    """The conformal warp ``vc`` (placed by ``pc``) with its size flattened, as
+    :func:`guard` judges it last: what the flattening gave (its ``meta`` entry) and the
+    positions and placement to keep, or None when it is not kept."""
+    key = "conformal flattened"
+    meta: dict[str, Any] = {}
+    flat = _flattened(mesh, vc, pc, content_map, up, meta, key, provisional)
+    if flat is None or not judge.no_worse(flat[1].apply(flat[0]), flat[2], key, 0.0):
+        return meta[key], None
+    placed = flat[1]
+    if provisional:
+        again = _placed(mesh, flat[0], pc, content_map, up, meta, key, judge, 0.0)
+        if again is None:
+            return meta[key], None
+        placed = again
+    return meta[key], (flat[0], placed)
 
 
 def _flattened(
@@ -460,6 +492,7 @@ def guard_grid(
     conformal: tuple[FloatArray, Placement],
     content_map: ContentMap,
     up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
+    memo: dict[str, Any] | None = None,
 ) -> tuple[FloatArray, dict[str, Any]]:
     """:func:`guard` for a warp given as content pixels of its grid's vertices (the
     device's coarse-to-fine result: what is displayed, not the coarse mesh, must be no
@@ -474,6 +507,9 @@ def guard_grid(
     conformal : (positions (n, 2), placement)
     content_map : ContentMap
     up : "up" in frame P.
+    memo : dict, optional
+        Kept by the caller for the next call with the same mesh, conformal warp,
+        content map and ``up`` (:func:`guard`'s ``memo``).
 
     Returns
     -------
@@ -484,8 +520,9 @@ def guard_grid(
     # the placements of a flattened warp or a blend)
     w, h = content_map.content_size
     as_is = Placement(0.0, 1.0, np.zeros(2), np.array([0.5 * w - 0.5, 0.5 * h - 0.5]))
+    aware = (flat[mesh.verts], as_is)
     choice = guard(
-        mesh, (flat[mesh.verts], as_is), conformal, content_map, up, flatten=True, provisional=True
+        mesh, aware, conformal, content_map, up, flatten=True, provisional=True, memo=memo
     )
     if choice.meta["choice"] == "content-aware":
         return image_xy, choice.meta

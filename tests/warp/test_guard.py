@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -13,6 +15,7 @@ from adaproj_edge.warp.engine import WarpSettings, make_warp, refine
 from adaproj_edge.warp.guard import guard, guard_grid, subject_distortion, triangle_distortion
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.placement import Placement, place
+from adaproj_edge.warp.planner import PlanSettings, WarpPlanner
 from adaproj_edge.warp.solve import solve_conformal
 from adaproj_edge.warp.warpmap import Grid
 from tests.distortion import in_mask, measure
@@ -208,3 +211,45 @@ def test_the_device_guard_places_only_a_flattened_candidate_it_may_keep(
     # the same placement function of the same positions: equal to rounding (content px)
     shown = every.placement.apply(every.v)
     np.testing.assert_allclose(kept.reshape(-1, 2)[mesh.verts], shown, atol=1e-6)
+
+
+def test_the_device_guard_measures_the_conformal_warp_once_per_content_free_warp(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # the guard's conformal side (its measure, its flattened candidate) depends on the
+    # content-free warp, the content map and "up" alone: a second refinement of the same
+    # warp reuses it (~0.7 ms of a device update); another content map, another "up",
+    # or the warp placed for another up measure it again. The face subject on the
+    # bumps tries the conformal warp flattened.
+    flattenings: list[str] = []
+    import adaproj_edge.warp.guard as guard_module
+
+    flattened = guard_module._flattened
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        flattenings.append(args[6] if len(args) > 6 else kwargs["key"])
+        return flattened(*args, **kwargs)
+
+    monkeypatch.setattr(guard_module, "_flattened", counted)
+    s = surface("bumps")
+    settings = WarpSettings(mode="content")
+    cmap = ContentMap(subject_masks()["face"], CONTENT)
+    planner = WarpPlanner(s.projector, plan=PlanSettings(refine_factor=2))
+    cf = planner.content_free(s, CONTENT, settings)
+    first = planner.refine(s, cmap, settings, cf)
+    assert "conformal flattened" in first.meta["guard"], first.meta["guard"]
+    assert flattenings.count("conformal flattened") == 1
+    again = planner.refine(s, cmap, settings, cf)
+    assert flattenings.count("conformal flattened") == 1
+    assert again.meta["guard"] == first.meta["guard"]
+    np.testing.assert_array_equal(again.image_xy, first.image_xy)  # the same call twice
+    other = ContentMap(subject_masks()["face"].copy(), CONTENT)
+    planner.refine(s, other, settings, cf)
+    assert flattenings.count("conformal flattened") == 2
+    a = np.deg2rad(8.0)
+    rolled = WarpSettings(mode="content", up=(np.sin(a), -np.cos(a), 0.0))
+    planner.refine(s, other, rolled, cf)
+    assert flattenings.count("conformal flattened") == 3
+    turned = planner.with_up(cf, rolled.up)
+    planner.refine(s, other, rolled, turned)
+    assert flattenings.count("conformal flattened") == 4
