@@ -144,14 +144,22 @@ def subject_distortion(
         if total <= 0:
             return SubjectDistortion(0.0, 0.0, 0.0)
         return _summary(weight, angle, log_size, total)
+    return _measured(mesh, content_xy, content_map)[0]
+
+
+def _measured(
+    mesh: MeshGeometry, content_xy: FloatArray, content_map: ContentMap
+) -> tuple[SubjectDistortion, FloatArray]:
+    """:func:`subject_distortion` by the mesh, and the triangles' weights (T,) it used
+    (:func:`subject_weights`)."""
     q = np.take(content_xy, mesh.tris.T, axis=0)  # (3, T, 2)
     weight = _salient_weights(mesh, content_xy, q, content_map)
     total = float(weight.sum())
     if total <= 0:
-        return SubjectDistortion(0.0, 0.0, 0.0)
+        return SubjectDistortion(0.0, 0.0, 0.0), weight
     keep = weight > 0
     angle, log_size = _distortion(q, mesh, keep)
-    return _summary(weight[keep], angle, log_size, total)
+    return _summary(weight[keep], angle, log_size, total), weight
 
 
 def subject_weights(
@@ -270,11 +278,11 @@ def guard(
     vc, pc = conformal
     memo = {} if memo is None or surface is not None else memo
     xy_aware = pa.apply(va)  # (each placed once, used again below)
-    m_aware = subject_distortion(mesh, xy_aware, content_map)
+    m_aware, w_aware = _measured(mesh, xy_aware, content_map)
     if "conformal" not in memo:
         xy = pc.apply(vc)
-        memo["conformal"] = xy, subject_distortion(mesh, xy, content_map)
-    xy_conf, m_conf = memo["conformal"]
+        memo["conformal"] = xy, *_measured(mesh, xy, content_map)
+    xy_conf, m_conf, w_conf = memo["conformal"]
     meta: dict[str, Any] = {"aware": m_aware.as_dict(), "conformal": m_conf.as_dict()}
     if m_aware.weight <= 0 or m_conf.weight <= 0:
         meta.update(choice="content-aware", reason="no salient content shows", t=1.0)
@@ -286,7 +294,7 @@ def guard(
     # surface)
     flatten = flatten and m_aware.size > FLATTEN_ABOVE * m_conf.size and m_conf.size > FLOOR
     if flatten:
-        flat = _flattened(mesh, va, pa, content_map, up, meta, "flattened", provisional)
+        flat = _flattened(mesh, va, pa, content_map, up, meta, "flattened", provisional, w_aware)
         if flat is not None and flat[2].size < m_aware.size:
             candidates.insert(0, ("flattened", *flat))
     for name, v, p, m in candidates:
@@ -339,7 +347,9 @@ def guard(
         key = "conformal flattened"
         meta[key] = {}  # (its place among the meta's keys, before what the judge adds)
         if key not in memo:
-            memo[key] = _conformal_flattened(mesh, vc, pc, content_map, up, judge, provisional)
+            memo[key] = _conformal_flattened(
+                mesh, vc, pc, content_map, up, judge, provisional, w_conf
+            )
         meta[key], kept = dict(memo[key][0]), memo[key][1]
         if kept is not None:
             meta.update(
@@ -362,13 +372,15 @@ def _conformal_flattened(
     up: FloatArray | tuple[float, float, float],
     judge: _Judge,
     provisional: bool,
+    weight: FloatArray,
 ) -> tuple[dict[str, Any], tuple[FloatArray, Placement] | None]:
     """The conformal warp ``vc`` (placed by ``pc``) with its size flattened, as
     :func:`guard` judges it last: what the flattening gave (its ``meta`` entry) and the
-    positions and placement to keep, or None when it is not kept."""
+    positions and placement to keep, or None when it is not kept (``weight``: the
+    triangles' weights (T,) at ``pc``)."""
     key = "conformal flattened"
     meta: dict[str, Any] = {}
-    flat = _flattened(mesh, vc, pc, content_map, up, meta, key, provisional)
+    flat = _flattened(mesh, vc, pc, content_map, up, meta, key, provisional, weight)
     if flat is None or not judge.no_worse(flat[1].apply(flat[0]), flat[2], key, 0.0):
         return meta[key], None
     placed = flat[1]
@@ -389,12 +401,15 @@ def _flattened(
     meta: dict[str, Any],
     key: str,
     provisional: bool = False,
+    weight: FloatArray | None = None,
 ) -> tuple[FloatArray, Placement, SubjectDistortion] | None:
     """Positions ``v`` (n, 2) with their size flattened over the subject, their placement
     and mesh measure; None when the flattening does not apply (``meta[key]`` says what
     it gave). ``provisional``: not placed, but measured at ``placement`` (the warp it
-    flattens was placed there), which is returned (see :func:`guard`)."""
-    weight = subject_weights(mesh, placement.apply(v), content_map)
+    flattens was placed there), which is returned (see :func:`guard`). ``weight``: the
+    triangles' weights (T,) of ``v`` at ``placement``, when known."""
+    if weight is None:
+        weight = subject_weights(mesh, placement.apply(v), content_map)
     _, log_size = triangle_distortion(mesh, v)
     vf = flattened(mesh, v, log_size, weight)
     if vf is None:
