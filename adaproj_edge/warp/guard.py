@@ -144,14 +144,22 @@ def subject_distortion(
         if total <= 0:
             return SubjectDistortion(0.0, 0.0, 0.0)
         return _summary(weight, angle, log_size, total)
+    return _measured(mesh, content_xy, content_map)[0]
+
+
+def _measured(
+    mesh: MeshGeometry, content_xy: FloatArray, content_map: ContentMap
+) -> tuple[SubjectDistortion, FloatArray]:
+    """:func:`subject_distortion` by the mesh, and the triangles' weights (T,) it used
+    (:func:`subject_weights`)."""
     q = np.take(content_xy, mesh.tris.T, axis=0)  # (3, T, 2)
     weight = _salient_weights(mesh, content_xy, q, content_map)
     total = float(weight.sum())
     if total <= 0:
-        return SubjectDistortion(0.0, 0.0, 0.0)
+        return SubjectDistortion(0.0, 0.0, 0.0), weight
     keep = weight > 0
     angle, log_size = _distortion(q, mesh, keep)
-    return _summary(weight[keep], angle, log_size, total)
+    return _summary(weight[keep], angle, log_size, total), weight
 
 
 def subject_weights(
@@ -219,6 +227,8 @@ def guard(
     margin: float = MARGIN,
     surface: Surface | None = None,
     flatten: bool = False,
+    provisional: bool = False,
+    memo: dict[str, Any] | None = None,
 ) -> Choice:
     """Keep the content-aware warp, a blend, or the conformal warp: the one with most of
     the content-aware warp that is no worse than the conformal warp on the salient
@@ -245,6 +255,17 @@ def guard(
     surface : the surface the mesh was built from; given, a candidate the mesh finds
         better by less than :data:`SURE` is judged as the per-pixel display shows it
         (:mod:`~adaproj_edge.warp.displayed`); else by the mesh alone.
+    provisional : a flattened candidate is first judged where the warp it flattens is
+        placed (the map fixes the subject's centre with unit derivative, so the subject
+        stays about where it was), and placed - then judged again where it is placed -
+        only when that first judgement keeps it; its blends are judged at that same
+        placement, as every blend is judged at its candidate's (the device's
+        :func:`guard_grid`: a placement costs ~0.7 ms of its update, and on a bumpy
+        wall neither flattened candidate was ever kept).
+    memo : where what is measured of the conformal warp alone (its measure, its
+        flattened candidate and what became of it) is kept for the next call with the
+        same mesh, conformal warp, content map and "up" (the device's refinements of
+        one content-free warp); not used when ``surface`` is given.
 
     Returns
     -------
@@ -255,9 +276,13 @@ def guard(
     """
     va, pa = aware
     vc, pc = conformal
-    xy_aware, xy_conf = pa.apply(va), pc.apply(vc)  # (each placed once, used again below)
-    m_aware = subject_distortion(mesh, xy_aware, content_map)
-    m_conf = subject_distortion(mesh, xy_conf, content_map)
+    memo = {} if memo is None or surface is not None else memo
+    xy_aware = pa.apply(va)  # (each placed once, used again below)
+    m_aware, w_aware = _measured(mesh, xy_aware, content_map)
+    if "conformal" not in memo:
+        xy = pc.apply(vc)
+        memo["conformal"] = xy, *_measured(mesh, xy, content_map)
+    xy_conf, m_conf, w_conf = memo["conformal"]
     meta: dict[str, Any] = {"aware": m_aware.as_dict(), "conformal": m_conf.as_dict()}
     if m_aware.weight <= 0 or m_conf.weight <= 0:
         meta.update(choice="content-aware", reason="no salient content shows", t=1.0)
@@ -269,11 +294,16 @@ def guard(
     # surface)
     flatten = flatten and m_aware.size > FLATTEN_ABOVE * m_conf.size and m_conf.size > FLOOR
     if flatten:
-        flat = _flattened(mesh, va, pa, content_map, up, meta, "flattened")
+        flat = _flattened(mesh, va, pa, content_map, up, meta, "flattened", provisional, w_aware)
         if flat is not None and flat[2].size < m_aware.size:
             candidates.insert(0, ("flattened", *flat))
     for name, v, p, m in candidates:
         if judge.no_worse(xy_aware if name == "content-aware" else p.apply(v), m, name):
+            if name == "flattened" and provisional:
+                placed = _placed(mesh, v, p, content_map, up, meta, name, judge)
+                if placed is None:
+                    continue
+                p = placed
             reason = "no worse in angle and size"
             if name == "flattened":
                 reason = "its size flattened over the subject, less size spread; " + reason
@@ -312,11 +342,16 @@ def guard(
         # warp's (up to the mesh's interpolation of the flattening map), so it is held
         # to no more angle error, and to the margin in size (judged where it is placed:
         # judged at the conformal warp's placement and placed only when kept, the
-        # bumps' face subject was shown at 1.14x the conformal warp's size spread)
-        flat = _flattened(mesh, vc, pc, content_map, up, meta, "conformal flattened")
-        if flat is not None and judge.no_worse(
-            flat[1].apply(flat[0]), flat[2], "conformal flattened", angle_margin=0.0
-        ):
+        # bumps' face subject was shown at 1.14x the conformal warp's size spread; so a
+        # provisional judgement keeps it only once it is placed and judged again)
+        key = "conformal flattened"
+        meta[key] = {}  # (its place among the meta's keys, before what the judge adds)
+        if key not in memo:
+            memo[key] = _conformal_flattened(
+                mesh, vc, pc, content_map, up, judge, provisional, w_conf
+            )
+        meta[key], kept = dict(memo[key][0]), memo[key][1]
+        if kept is not None:
             meta.update(
                 choice="conformal flattened",
                 reason="no blend is better in both angle and size; the conformal warp "
@@ -324,9 +359,37 @@ def guard(
                 "more angle error",
                 t=0.0,
             )
-            return Choice(flat[0], flat[1], 0.0, meta)
+            return Choice(kept[0], kept[1], 0.0, meta)
     meta.update(choice="conformal", reason="no blend is better in both angle and size", t=0.0)
     return Choice(vc, pc, 0.0, meta)
+
+
+def _conformal_flattened(
+    mesh: MeshGeometry,
+    vc: FloatArray,
+    pc: Placement,
+    content_map: ContentMap,
+    up: FloatArray | tuple[float, float, float],
+    judge: _Judge,
+    provisional: bool,
+    weight: FloatArray,
+) -> tuple[dict[str, Any], tuple[FloatArray, Placement] | None]:
+    """The conformal warp ``vc`` (placed by ``pc``) with its size flattened, as
+    :func:`guard` judges it last: what the flattening gave (its ``meta`` entry) and the
+    positions and placement to keep, or None when it is not kept (``weight``: the
+    triangles' weights (T,) at ``pc``)."""
+    key = "conformal flattened"
+    meta: dict[str, Any] = {}
+    flat = _flattened(mesh, vc, pc, content_map, up, meta, key, provisional, weight)
+    if flat is None or not judge.no_worse(flat[1].apply(flat[0]), flat[2], key, 0.0):
+        return meta[key], None
+    placed = flat[1]
+    if provisional:
+        again = _placed(mesh, flat[0], pc, content_map, up, meta, key, judge, 0.0)
+        if again is None:
+            return meta[key], None
+        placed = again
+    return meta[key], (flat[0], placed)
 
 
 def _flattened(
@@ -337,20 +400,45 @@ def _flattened(
     up: FloatArray | tuple[float, float, float],
     meta: dict[str, Any],
     key: str,
+    provisional: bool = False,
+    weight: FloatArray | None = None,
 ) -> tuple[FloatArray, Placement, SubjectDistortion] | None:
     """Positions ``v`` (n, 2) with their size flattened over the subject, their placement
     and mesh measure; None when the flattening does not apply (``meta[key]`` says what
-    it gave)."""
-    weight = subject_weights(mesh, placement.apply(v), content_map)
+    it gave). ``provisional``: not placed, but measured at ``placement`` (the warp it
+    flattens was placed there), which is returned (see :func:`guard`). ``weight``: the
+    triangles' weights (T,) of ``v`` at ``placement``, when known."""
+    if weight is None:
+        weight = subject_weights(mesh, placement.apply(v), content_map)
     _, log_size = triangle_distortion(mesh, v)
     vf = flattened(mesh, v, log_size, weight)
     if vf is None:
         meta[key] = {"reason": "nothing to fit, too large a rescaling, or a fold"}
         return None
-    pf = place(mesh, vf, content_map.content_size, up, placement)
+    pf = placement if provisional else place(mesh, vf, content_map.content_size, up, placement)
     m = subject_distortion(mesh, pf.apply(vf), content_map)
-    meta[key] = m.as_dict()
+    meta[key] = {**m.as_dict(), "placed": False} if provisional else m.as_dict()
     return vf, pf, m
+
+
+def _placed(
+    mesh: MeshGeometry,
+    v: FloatArray,
+    at: Placement,
+    content_map: ContentMap,
+    up: FloatArray | tuple[float, float, float],
+    meta: dict[str, Any],
+    key: str,
+    judge: _Judge,
+    angle_margin: float | None = None,
+) -> Placement | None:
+    """The placement of the flattened candidate ``v`` (n, 2) that a provisional judgement
+    at ``at`` kept (:func:`guard`), when it is still no worse there (None: it is not);
+    ``meta[key]`` then holds its measure where it is placed."""
+    p = place(mesh, v, content_map.content_size, up, at)
+    m = subject_distortion(mesh, p.apply(v), content_map)
+    meta[key] = m.as_dict()
+    return p if judge.no_worse(p.apply(v), m, key, angle_margin) else None
 
 
 class _Judge:
@@ -419,6 +507,7 @@ def guard_grid(
     conformal: tuple[FloatArray, Placement],
     content_map: ContentMap,
     up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
+    memo: dict[str, Any] | None = None,
 ) -> tuple[FloatArray, dict[str, Any]]:
     """:func:`guard` for a warp given as content pixels of its grid's vertices (the
     device's coarse-to-fine result: what is displayed, not the coarse mesh, must be no
@@ -433,6 +522,9 @@ def guard_grid(
     conformal : (positions (n, 2), placement)
     content_map : ContentMap
     up : "up" in frame P.
+    memo : dict, optional
+        Kept by the caller for the next call with the same mesh, conformal warp,
+        content map and ``up`` (:func:`guard`'s ``memo``).
 
     Returns
     -------
@@ -443,7 +535,10 @@ def guard_grid(
     # the placements of a flattened warp or a blend)
     w, h = content_map.content_size
     as_is = Placement(0.0, 1.0, np.zeros(2), np.array([0.5 * w - 0.5, 0.5 * h - 0.5]))
-    choice = guard(mesh, (flat[mesh.verts], as_is), conformal, content_map, up, flatten=True)
+    aware = (flat[mesh.verts], as_is)
+    choice = guard(
+        mesh, aware, conformal, content_map, up, flatten=True, provisional=True, memo=memo
+    )
     if choice.meta["choice"] == "content-aware":
         return image_xy, choice.meta
     out = np.full_like(flat, np.nan)

@@ -136,6 +136,10 @@ class ContentFreeWarp:
         The coarse meshes refinements of this warp ran on, by grid: made once, from the
         surface of the first refinement (later ones - the device's, of surfaces within
         its pose cache's tolerance of this one - reuse it, as they reuse this warp).
+    known_guard : (content map, up, memo) or None
+        What the guard of its coarse-to-fine refinements measured of the conformal warp
+        alone, for that content map (the same object) and "up"
+        (:meth:`guard_memo`).
     """
 
     warp: Warp
@@ -149,6 +153,9 @@ class ContentFreeWarp:
     known_conformal_placement: Placement | None = field(default=None, repr=False)
     refinement_meshes: dict[str, MeshGeometry] = field(
         default_factory=dict, repr=False, compare=False
+    )
+    known_guard: tuple[ContentMap, FloatArray, dict[str, Any]] | None = field(
+        default=None, repr=False, compare=False
     )
 
     @property
@@ -165,6 +172,19 @@ class ContentFreeWarp:
                 self.mesh, self.v_conformal, self.warp.content_size, self.up
             )
         return self.known_conformal_placement
+
+    def guard_memo(
+        self, content_map: ContentMap, up: FloatArray | tuple[float, ...]
+    ) -> dict[str, Any]:
+        """Where the guard of this warp's refinements keeps what it measured of the
+        conformal warp alone (:func:`~adaproj_edge.warp.guard.guard_grid`'s ``memo``): the
+        same for every refinement with ``content_map`` (the same object) and ``up``, and
+        made again for another."""
+        up_p = np.asarray(up, dtype=np.float64)
+        known = self.known_guard
+        if known is None or known[0] is not content_map or not np.array_equal(known[1], up_p):
+            known = self.known_guard = (content_map, up_p.copy(), {})
+        return known[2]
 
     def matches(self, depth: FloatArray, max_rel: float, min_overlap: float) -> bool:
         """Whether the lattice ``depth`` is (nearly) the surface this warp was made for
@@ -455,7 +475,12 @@ class WarpPlanner:
             start.warp, image_xy=flat.reshape(start.warp.image_xy.shape), meta=dict(start.warp.meta)
         )
         return replace(
-            start, warp=warp, placement=placement, up=up_p, known_conformal_placement=None
+            start,
+            warp=warp,
+            placement=placement,
+            up=up_p,
+            known_conformal_placement=None,
+            known_guard=None,
         )
 
     def _conformal_start(
@@ -618,6 +643,7 @@ class WarpPlanner:
                     (start.v_conformal, start.conformal_placement),
                     content_map,
                     settings.up,
+                    start.guard_memo(content_map, settings.up),
                 )
         meta = {
             **fine.meta,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -12,7 +14,8 @@ from adaproj_edge.warp.displayed import STEP, DisplaySamples, creased
 from adaproj_edge.warp.engine import WarpSettings, make_warp, refine
 from adaproj_edge.warp.guard import guard, guard_grid, subject_distortion, triangle_distortion
 from adaproj_edge.warp.mesh import MeshGeometry
-from adaproj_edge.warp.placement import place
+from adaproj_edge.warp.placement import Placement, place
+from adaproj_edge.warp.planner import PlanSettings, WarpPlanner
 from adaproj_edge.warp.solve import solve_conformal
 from adaproj_edge.warp.warpmap import Grid
 from tests.distortion import in_mask, measure
@@ -162,3 +165,91 @@ def test_the_device_guard_shows_the_flattened_warp_it_chose() -> None:
     m_given = subject_distortion(mesh, pa.apply(va), cmap)
     assert m_shown.size < m_given.size
     assert m_shown.size == pytest.approx(meta["flattened"]["size"], rel=1e-9)
+
+
+# the device's guard judges a flattened candidate where the warp it flattens is placed,
+# and places it only when that judgement keeps it (a placement is ~0.7 ms of a device
+# update): on the bumps' face subject, where neither flattened candidate is kept, it
+# placed both before; the choice is what placing every candidate gives
+@pytest.mark.parametrize(
+    ("name", "mask", "placed", "choice"),
+    [("bumps", "face", 1, "conformal"), ("bowl", "half", 1, "blend")],
+)
+def test_the_device_guard_places_only_a_flattened_candidate_it_may_keep(
+    name: str, mask: str, placed: int, choice: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import adaproj_edge.warp.guard as guard_module
+
+    s = surface(name)
+    mesh = MeshGeometry.build(s, Grid(20, 20))
+    vc = solve_conformal(mesh)
+    pc = place(mesh, vc, CONTENT)
+    cmap = ContentMap(subject_masks()[mask], CONTENT)
+    va, pa, _, _ = refine(mesh, vc, pc, cmap, WarpSettings())
+    rows, cols = mesh.grid_uv.shape[:2]
+    given = np.full((rows * cols, 2), np.nan)
+    given[mesh.verts] = pa.apply(va)
+    # every candidate placed, as the full grid's guard does (given content pixels, as
+    # the device's guard is)
+    w, h = CONTENT
+    as_is = Placement(0.0, 1.0, np.zeros(2), np.array([0.5 * w - 0.5, 0.5 * h - 0.5]))
+    every = guard(mesh, (pa.apply(va), as_is), (vc, pc), cmap, flatten=True)
+    calls = []
+
+    def counted(*args: object, **kwargs: object) -> object:
+        calls.append(args)
+        return place(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(guard_module, "place", counted)
+    kept, meta = guard_grid(given.reshape(rows, cols, 2), mesh, (vc, pc), cmap)
+    flattened = [k for k in ("flattened", "conformal flattened") if k in meta]
+    assert len(flattened) == 2 or choice == "blend", meta
+    # a kept blend is placed too (as before); the flattened candidates only when kept
+    assert len(calls) == placed, len(calls)
+    assert meta["choice"] == every.meta["choice"] == choice
+    assert meta["t"] == every.meta["t"]
+    # the same placement function of the same positions: equal to rounding (content px)
+    shown = every.placement.apply(every.v)
+    np.testing.assert_allclose(kept.reshape(-1, 2)[mesh.verts], shown, atol=1e-6)
+
+
+def test_the_device_guard_measures_the_conformal_warp_once_per_content_free_warp(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # the guard's conformal side (its measure, its flattened candidate) depends on the
+    # content-free warp, the content map and "up" alone: a second refinement of the same
+    # warp reuses it (~0.7 ms of a device update); another content map, another "up",
+    # or the warp placed for another up measure it again. The face subject on the
+    # bumps tries the conformal warp flattened.
+    flattenings: list[str] = []
+    import adaproj_edge.warp.guard as guard_module
+
+    flattened = guard_module._flattened
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        flattenings.append(args[6] if len(args) > 6 else kwargs["key"])
+        return flattened(*args, **kwargs)
+
+    monkeypatch.setattr(guard_module, "_flattened", counted)
+    s = surface("bumps")
+    settings = WarpSettings(mode="content")
+    cmap = ContentMap(subject_masks()["face"], CONTENT)
+    planner = WarpPlanner(s.projector, plan=PlanSettings(refine_factor=2))
+    cf = planner.content_free(s, CONTENT, settings)
+    first = planner.refine(s, cmap, settings, cf)
+    assert "conformal flattened" in first.meta["guard"], first.meta["guard"]
+    assert flattenings.count("conformal flattened") == 1
+    again = planner.refine(s, cmap, settings, cf)
+    assert flattenings.count("conformal flattened") == 1
+    assert again.meta["guard"] == first.meta["guard"]
+    np.testing.assert_array_equal(again.image_xy, first.image_xy)  # the same call twice
+    other = ContentMap(subject_masks()["face"].copy(), CONTENT)
+    planner.refine(s, other, settings, cf)
+    assert flattenings.count("conformal flattened") == 2
+    a = np.deg2rad(8.0)
+    rolled = WarpSettings(mode="content", up=(np.sin(a), -np.cos(a), 0.0))
+    planner.refine(s, other, rolled, cf)
+    assert flattenings.count("conformal flattened") == 3
+    turned = planner.with_up(cf, rolled.up)
+    planner.refine(s, other, rolled, turned)
+    assert flattenings.count("conformal flattened") == 4
