@@ -64,6 +64,7 @@ from adaproj_edge.geometry.surface import Surface
 
 PLANES_KEY = "plane_equations"  # a snapped surface's meta: its planes, [nx, ny, nz, d] each
 TUKEY_C = 4.685  # Tukey's biweight: residuals beyond this many errors weigh nothing
+FAR_BEYOND_BEND = 3.0  # see _join_bent
 ON_PLANE_REL = 1e-4  # a point this close to a plane (of its depth) lies on it (float32's
 # rounding of a snapped node is ~1e-7 of its depth; the sensor's noise is ~1e-3)
 
@@ -478,7 +479,16 @@ def _join_bent(
 ) -> list[Plane]:
     """``planes`` with every pair that is one plane bent by the sensor's slow error
     (:func:`one_plane`, on their raw points, else their nodes) replaced by one plane
-    fitted to both (:func:`fit_plane_raw`), in the place of the first of the two."""
+    fitted to both (:func:`fit_plane_raw`), in the place of the first of the two. A
+    pair whose dihedral is more than ``FAR_BEYOND_BEND`` times the largest the sensor's
+    slow error makes between them
+    (:meth:`~adaproj_edge.geometry.depth.sensor.SensorModel.max_dihedral_rad`, for their
+    nodes' centroids) is two planes without the joint fit (a room's corner)."""
+
+    def centre(p: Plane) -> FloatArray:
+        q = pts[p.nodes]
+        return np.asarray((q[:, :2] / q[:, 2:3]).mean(axis=0))
+
     out = list(planes)
     joined = True
     while joined and len(out) > 1:
@@ -486,6 +496,12 @@ def _join_bent(
         for i in range(len(out)):
             for j in range(i + 1, len(out)):
                 a, b = out[i], out[j]
+                limit = sensor.max_dihedral_rad(
+                    max(abs(a.offset), abs(b.offset)), float(np.linalg.norm(centre(a) - centre(b)))
+                )
+                dihedral = float(np.arccos(min(1.0, abs(float(a.normal @ b.normal)))))
+                if dihedral > FAR_BEYOND_BEND * s.curve_tolerance * limit:
+                    continue
                 pa, pb = _piece_points(a.nodes, pts, raw), _piece_points(b.nodes, pts, raw)
                 if len(pa) < 6 or len(pb) < 6 or not one_plane([pa, pb], sensor, s.curve_tolerance):
                     continue
