@@ -104,7 +104,7 @@ class SensorKind:
 # in halves (left / right, top / bottom), an affine disparity fitted to each, the
 # difference of their gradients over twice the distance of their centroids (the
 # curvature of a quadratic that tilts them so): 1.3-4.3 px on the six boxes that are
-# one plane (at 2.2-2.9 m, image radius 0.16-0.57), their halves 0.2-3.2 deg and
+# one plane (at 2.2-2.9 m, image radius 0.20-0.57), their halves 0.2-3.2 deg and
 # 1-12 mm apart at the seam. The boxes are too few to resolve a trend with depth or
 # radius in that range (the literature on Kinect-class calibration finds the error
 # growing with depth and toward the corners); the model takes the largest, rounded
