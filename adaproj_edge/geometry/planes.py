@@ -23,6 +23,15 @@ plane by no more than that slow error is planar whatever its bend ratio. Curved
 surfaces (a column, a dome, a bowl) never meet that on a large piece and are left as
 they are.
 
+The sensor's slow error is smooth: over a wall it is nearly a quadratic in the image
+coordinates, whose curvature the model bounds (``curve_px``, measured on real frames).
+A piece its nodes' tolerance splits off or its bend rejects is still a plane when one
+quadratic of at most that curvature fits its inverse depth (:func:`bent_plane`); it is
+grown to the nodes near that bent fit and fitted with one plane. Two snapped planes
+that one such quadratic joins are one plane, refitted jointly: the sensor cannot tell
+their dihedral from its own bend. A crease it can resolve needs a larger curvature and
+stays two planes.
+
 Given the depth the lattice was estimated from before its smoothing (:class:`RawDepth`),
 a piece's plane is fitted to the raw points under it, weighted by the sensor's noise
 model and robustly (:func:`fit_plane_raw`): at a few metres a Kinect's depth error is
@@ -55,6 +64,7 @@ from adaproj_edge.geometry.surface import Surface
 
 PLANES_KEY = "plane_equations"  # a snapped surface's meta: its planes, [nx, ny, nz, d] each
 TUKEY_C = 4.685  # Tukey's biweight: residuals beyond this many errors weigh nothing
+FAR_BEYOND_BEND = 3.0  # see _join_bent
 ON_PLANE_REL = 1e-4  # a point this close to a plane (of its depth) lies on it (float32's
 # rounding of a snapped node is ~1e-7 of its depth; the sensor's noise is ~1e-3)
 
@@ -82,6 +92,10 @@ class PlaneSettings:
     bias_tolerance: float = 2.5
     bias_rms: float = 1.0
     bias_bend: float = 1.0
+    # two planes are one plane (refitted jointly) when a quadratic that bends their raw
+    # points' disparity as the sensor's slow error can (curvature within this many of
+    # the sensor's ``curve_px``) joins them: see one_plane
+    curve_tolerance: float = 1.0
     window: int = 2  # candidate planes from (2 w + 1)^2 node windows ...
     stride: int = 2  # ... centred on every stride-th node
     # fit an accepted piece's plane to the raw depth under it (fit_plane_raw) rather
@@ -350,11 +364,157 @@ def find_planes(
         planar = (
             rms <= flat_rms or bend <= s.max_bend or bend_m(pts[piece], nl, dl, bend) <= bias_bend
         )
-        if piece.sum() >= s.min_fraction * n_valid and rms <= max_rms and planar:
-            planes.append(Plane(n, d, piece, rms, bend))
+        if piece.sum() < s.min_fraction * n_valid:
+            continue
+        if not (rms <= max_rms and planar) and sensor is not None and sensor.curve_px > 0:
+            # a piece bent no more than the sensor's slow error bends a plane (a real
+            # sensor's bowl) is a plane, whatever its RMS and bend ratio: grown to the
+            # nodes near its bent fit (the rim of the bowl, beyond the plane's
+            # tolerance), then fitted with one plane
+            raw_fit = raw if s.raw_fit else None
+            coef = bent_plane([_piece_points(piece, pts, raw_fit)], sensor, s.curve_tolerance)
+            if coef is None:
+                continue
+            piece = _grow(piece, pts, free, coef, tol)
+            free &= ~piece
+            n, d = fit_plane(pts[piece])
+            if raw_fit is not None:
+                n, d = fit_plane_raw(raw_fit.samples(piece), sensor, n, d)
+            rms = float(np.sqrt(np.mean((pts[piece] @ n - d) ** 2)))
+            bend = curvature_ratio(pts[piece], n, d)
+        elif rms > max_rms or not planar:
+            continue
+        planes.append(Plane(n, d, piece, rms, bend))
+    if sensor is not None and sensor.curve_px > 0 and len(planes) > 1:
+        planes = _join_bent(planes, pts, s, sensor, raw if s.raw_fit else None)
     if raw is not None and s.raw_fit and sensor is not None and len(planes) > 1:
         planes = [_off_creases(p, planes, raw, sensor) for p in planes]
     return planes
+
+
+def _grow(
+    piece: NDArray[np.bool_],
+    pts: FloatArray,
+    free: NDArray[np.bool_],
+    coef: FloatArray,
+    tol: float | FloatArray,
+) -> NDArray[np.bool_]:
+    """``piece`` and the ``free`` nodes of ``pts`` (rows, cols, 3) connected to it that lie
+    within ``tol`` (m, per node or one) of the bent surface ``coef`` (:func:`bent_plane`)."""
+    flat = pts.reshape(-1, 3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z_fit = 1.0 / (_quadric_terms(flat) @ coef)
+        near = np.abs(flat[:, 2] - z_fit) < np.reshape(tol, -1)
+    near = (near.reshape(piece.shape) & free) | piece
+    labels, _ = ndimage.label(near)
+    return np.asarray(np.isin(labels, np.unique(labels[piece])) & near)
+
+
+def _piece_points(nodes: NDArray[np.bool_], pts: FloatArray, raw: RawDepth | None) -> FloatArray:
+    """(n, 3) the known raw points under ``nodes`` (none given: the nodes' points)."""
+    q = raw.samples(nodes) if raw is not None else pts[nodes]
+    return q[np.isfinite(q).all(axis=1) & (q[:, 2] > 0)]
+
+
+def one_plane(points: list[FloatArray], sensor: SensorModel, tolerance: float = 1.0) -> bool:
+    """Whether the pieces' ``points`` (each (n, 3), in a frame near the depth camera's)
+    are one plane bent by the ``sensor``'s slow error (:func:`bent_plane`)."""
+    return bent_plane(points, sensor, tolerance) is not None
+
+
+def _quadric_terms(points: FloatArray) -> FloatArray:
+    """(n, 6) ``1, x, y, x^2, x y, y^2`` of ``points``' (n, 3) image coordinates
+    ``x = X / Z``, ``y = Y / Z``."""
+    x, y = points[:, 0] / points[:, 2], points[:, 1] / points[:, 2]
+    return np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=1)
+
+
+def bent_plane(
+    points: list[FloatArray], sensor: SensorModel, tolerance: float = 1.0
+) -> FloatArray | None:
+    """The inverse depth (6,) over :func:`_quadric_terms` of the pieces' ``points`` (each
+    (n, 3), in a frame near the depth camera's) when they are one plane bent by the
+    ``sensor``'s slow error, else None.
+
+    Their inverse depth ``1 / z`` (the disparity over ``f B``; a plane's is affine in
+    ``x = X / Z``, ``y = Y / Z``) is fitted jointly, by least squares and once more without
+    the points beyond Tukey's bound of the sensor's error (its random one and its slow
+    one), with an affine part and a quadratic ``qxx x^2 + qxy x y + qyy y^2``. They are
+    one plane when its curvature (``f B`` times the quadratic's largest ``|eig|``) is
+    within ``tolerance`` of the sensor's ``curve_px`` and the fit keeps most of each
+    piece's points (a step between two parallel planes, or another plane beside one,
+    is not a bend). Two walls meeting at a crease need a curvature of about their
+    disparity gradients' difference over twice the distance of their centroids
+    (:meth:`~adaproj_edge.geometry.depth.sensor.SensorModel.max_dihedral_rad` is that
+    bound as a dihedral). The curvature is read in the given frame's image coordinates,
+    not the depth camera's: the projector's frame, a few cm away and turned by the aim,
+    reads it within about the cosine of that turn."""
+    pts = np.concatenate(points)
+    A, w = _quadric_terms(pts), 1.0 / pts[:, 2]
+    bound = TUKEY_C * float(np.hypot(sensor.disparity_total_px, sensor.bias_px)) / sensor.fb
+    keep = np.isfinite(w) & np.isfinite(A).all(axis=1)
+    coef: FloatArray = np.zeros(6)
+    for _ in range(2):
+        if keep.sum() < 12:
+            return None
+        coef = np.asarray(np.linalg.lstsq(A[keep], w[keep], rcond=None)[0], dtype=np.float64)
+        with np.errstate(invalid="ignore"):
+            keep = np.abs(w - A @ coef) < bound
+    start = 0
+    for p in points:  # every piece keeps most of its points on the joint fit
+        if len(p) == 0 or keep[start : start + len(p)].mean() < 0.8:
+            return None
+        start += len(p)
+    q = np.array([[coef[3], coef[4] / 2.0], [coef[4] / 2.0, coef[5]]])
+    curve = sensor.fb * float(np.abs(np.linalg.eigvalsh(q)).max())
+    return coef if curve <= tolerance * sensor.curve_px else None
+
+
+def _join_bent(
+    planes: list[Plane],
+    pts: FloatArray,
+    s: PlaneSettings,
+    sensor: SensorModel,
+    raw: RawDepth | None,
+) -> list[Plane]:
+    """``planes`` with every pair that is one plane bent by the sensor's slow error
+    (:func:`one_plane`, on their raw points, else their nodes) replaced by one plane
+    fitted to both (:func:`fit_plane_raw`), in the place of the first of the two. A
+    pair whose dihedral is more than ``FAR_BEYOND_BEND`` times the largest the sensor's
+    slow error makes between them
+    (:meth:`~adaproj_edge.geometry.depth.sensor.SensorModel.max_dihedral_rad`, for their
+    nodes' centroids) is two planes without the joint fit (a room's corner)."""
+
+    def centre(p: Plane) -> FloatArray:
+        q = pts[p.nodes]
+        return np.asarray((q[:, :2] / q[:, 2:3]).mean(axis=0))
+
+    out = list(planes)
+    joined = True
+    while joined and len(out) > 1:
+        joined = False
+        for i in range(len(out)):
+            for j in range(i + 1, len(out)):
+                a, b = out[i], out[j]
+                limit = sensor.max_dihedral_rad(
+                    max(abs(a.offset), abs(b.offset)), float(np.linalg.norm(centre(a) - centre(b)))
+                )
+                dihedral = float(np.arccos(min(1.0, abs(float(a.normal @ b.normal)))))
+                if dihedral > FAR_BEYOND_BEND * s.curve_tolerance * limit:
+                    continue
+                pa, pb = _piece_points(a.nodes, pts, raw), _piece_points(b.nodes, pts, raw)
+                if len(pa) < 6 or len(pb) < 6 or not one_plane([pa, pb], sensor, s.curve_tolerance):
+                    continue
+                n, d = fit_plane_raw(np.concatenate([pa, pb]), sensor, a.normal, a.offset)
+                nodes = a.nodes | b.nodes
+                rms = float(np.sqrt(np.mean((pts[nodes] @ n - d) ** 2)))
+                out[i] = Plane(n, d, nodes, rms, curvature_ratio(pts[nodes], n, d))
+                del out[j]
+                joined = True
+                break
+            if joined:
+                break
+    return out
 
 
 def _off_creases(plane: Plane, planes: list[Plane], raw: RawDepth, sensor: SensorModel) -> Plane:

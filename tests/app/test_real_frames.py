@@ -67,6 +67,12 @@ XFAIL: dict[str, dict[str, str]] = {
         "nyu_basement/wardrobe": "11.8 deg on a wall",
     },
     "test_planar_distortion": {
+        # not one plane: the corridor's wall steps in by 12.5 cm at depth pixel u ~ 100-125
+        # (a face at 2.29-2.35 m over all its rows between two parallel wall planes, their
+        # normals 1 deg apart): the device's two planes there (offsets 0.77 and 0.59 m)
+        # need a joint curvature of 77 px against the sensor's 4.5, so stay two
+        # (tools/measure_sensor_bend.py reads the box's halves at 24 px, one-plane boxes
+        # at 1.3-4.3)
         "sun3d_corridor/wall": "angle 0.279, size 0.012",
     },
     "test_planar_distortion_as_measured": {

@@ -17,7 +17,18 @@ distance.
 Real sensors also warp a flat wall slowly: a disparity error that varies over a few
 hundred pixels (bands, bowls), the same in every frame, of ``bias_px`` RMS: a few cm
 at 3 m, up to a step. Averaging does not remove it either; :meth:`SensorModel.bias_m`
-is its size in depth, ``z^2 / (f B) * bias_px``.
+is its size in depth, ``z^2 / (f B) * bias_px``. Its shape matters as much as its
+size: it is smooth (a bowl or a curl toward the image's corners), so over a piece of a
+wall it adds a nearly affine disparity, which tilts the piece's plane (a plane's
+disparity is affine in the normalised image coordinates ``x = X / Z``, ``y = Y / Z``), and
+two pieces of one flat wall come out as two planes a few degrees apart. ``curve_px``
+bounds that: the slow error's curvature, the largest ``|eig|`` of the quadratic
+``qxx x^2 + qxy x y + qyy y^2`` it adds over a wall (px of disparity per unit of
+normalised coordinate squared). Two pieces of one plane whose centroids are ``s``
+apart in normalised coordinates are tilted apart by at most ``2 curve_px s`` px of
+disparity per unit, a dihedral of about ``2 curve_px s D / (f B)`` radians on a plane at
+distance ``D`` (:meth:`SensorModel.max_dihedral_rad`): what a crease must exceed for
+the sensor to resolve it.
 
 The smoothing (:mod:`~adaproj_edge.geometry.depth.fits`) lets a wider fit replace a
 narrower one that only follows a step, plane snapping
@@ -64,6 +75,10 @@ class SensorKind:
         Radius (px) of the patch of the image one pixel's depth is made from (the
         matcher's window, the device's median filter): a pixel this close to a crease
         or an edge mixes the two sides' depths, so its depth is off both.
+    curve_px : float
+        The largest curvature of the slow error over a plane (px of disparity per unit
+        of normalised image coordinate squared; see the module's docstring): how far
+        it can tilt two pieces of one flat wall apart.
     """
 
     name: str
@@ -71,6 +86,7 @@ class SensorKind:
     disparity_sigma_px: float
     bias_px: float = 0.0
     footprint_px: float = 3.0
+    curve_px: float = 0.0
 
 
 # The slowly varying disparity error (``bias_px``) of a Kinect-class sensor, measured on
@@ -82,13 +98,24 @@ class SensorKind:
 # sensor is a gently warped sheet. No OAK-D recording is in the repository; until one
 # measures it, an OAK-D is given the same (a stereo camera's calibration leaves a
 # slowly varying disparity error of the same order).
+#
+# Its curvature (``curve_px``), measured on the same frames by
+# ``tools/measure_sensor_bend.py``: each floor and wall box's inlier disparities split
+# in halves (left / right, top / bottom), an affine disparity fitted to each, the
+# difference of their gradients over twice the distance of their centroids (the
+# curvature of a quadratic that tilts them so): 1.3-4.3 px on the six boxes that are
+# one plane (at 2.2-2.9 m, image radius 0.20-0.57), their halves 0.2-3.2 deg and
+# 1-12 mm apart at the seam. The boxes are too few to resolve a trend with depth or
+# radius in that range (the literature on Kinect-class calibration finds the error
+# growing with depth and toward the corners); the model takes the largest, rounded
+# up: 4.5 px. The same is given to an OAK-D until a recording of one measures it.
 SENSORS: dict[str, SensorKind] = {
     # OAK-D stereo: subpixel mode, 3 fractional bits by default (DepthAI), its depth
     # median-filtered over 7 x 7 pixels by default (a footprint of 3 px)
-    "oak-d": SensorKind("oak-d", 3, 0.1, 0.04, 3.0),
+    "oak-d": SensorKind("oak-d", 3, 0.1, 0.04, 3.0, 4.5),
     # Kinect-class structured light: disparity in 1/8 px (11-bit raw values), matched
     # over windows of about 9 x 9 pixels (a footprint of 4 px)
-    "kinect": SensorKind("kinect", 3, 0.07, 0.04, 4.0),
+    "kinect": SensorKind("kinect", 3, 0.07, 0.04, 4.0, 4.5),
 }
 
 
@@ -113,6 +140,8 @@ class SensorModel:
         :class:`SensorKind`).
     footprint_px : float
         Radius (px) of the patch one pixel's depth is made from (see :class:`SensorKind`).
+    curve_px : float
+        The largest curvature of the slow error over a plane (see :class:`SensorKind`).
     """
 
     name: str
@@ -122,14 +151,15 @@ class SensorModel:
     disparity_sigma_px: float = 0.1
     bias_px: float = 0.0
     footprint_px: float = 3.0
+    curve_px: float = 0.0
 
     def __post_init__(self) -> None:
         if self.focal_px <= 0 or self.baseline_m <= 0:
             raise InputError("a depth sensor needs a positive focal length and baseline")
         if not 0 <= self.subpixel_bits <= 8 or self.disparity_sigma_px < 0 or self.bias_px < 0:
             raise InputError("subpixel bits must be 0..8 and the disparity noise and bias >= 0")
-        if self.footprint_px < 0:
-            raise InputError("a depth sensor's footprint must be >= 0 pixels")
+        if self.footprint_px < 0 or self.curve_px < 0:
+            raise InputError("a depth sensor's footprint and curvature must be >= 0")
 
     @classmethod
     def of(cls, camera: DepthCameraModel, kind: str = "oak-d") -> SensorModel:
@@ -146,6 +176,7 @@ class SensorModel:
             k.disparity_sigma_px,
             k.bias_px,
             k.footprint_px,
+            k.curve_px,
         )
 
     @property
@@ -184,3 +215,11 @@ class SensorModel:
         ``z^2 / (f B) * bias_px``."""
         zz = np.asarray(z, dtype=np.float64)
         return zz * zz / self.fb * self.bias_px
+
+    def max_dihedral_rad(self, distance_m: float, separation: float) -> float:
+        """The largest dihedral (rad) the slow error can put between two pieces of one
+        flat plane at ``distance_m`` from the camera whose centroids lie ``separation``
+        apart in normalised image coordinates: their disparities' gradients differ by up
+        to ``2 curve_px separation`` px per unit, and a plane's disparity gradient is
+        ``f B n_xy / D``. A crease of a larger dihedral is one the sensor resolves."""
+        return 2.0 * self.curve_px * abs(separation * distance_m) / self.fb
