@@ -7,11 +7,15 @@ figures: ``.venv/bin/python tools/measure_warp.py``.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
 from adaproj_edge.geometry.analytic import DEVELOPABLE, NON_DEVELOPABLE, SURFACES, get_surface
+from adaproj_edge.geometry.rectangle import NEAR, Rect, inscribed_rectangle
 from adaproj_edge.render.maps import map_from_warp
+from adaproj_edge.warp import reference
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.reference import REFERENCE
@@ -161,6 +165,33 @@ SMALLER = {"cylinder-floor": "centred on the area centroid, below the middle of 
     ],
 )
 def test_the_picture_covers_as_much_of_the_lit_surface_as_the_papers(name: str, mask: str) -> None:
+    s = surface(name)
+    paper = compute_warp(
+        s,
+        CONTENT,
+        subject_masks()[mask],
+        WarpSettings(mode="content", alternation="paper"),
+        REFERENCE,
+    )
+    theirs = lit_coverage(map_from_warp(paper, s), s.points, CONTENT)
+    ours = lit_coverage(warped(name, "content", mask)[1], s.points, CONTENT)
+    assert ours >= COVERAGE * theirs, (ours, theirs)
+
+
+@pytest.mark.parametrize("mask", ["one-left", "half"])
+@pytest.mark.parametrize("name", sorted(SMALLER))
+def test_where_centred_lower_it_covers_as_much_as_the_paper_centred_the_same_way(
+    name: str, mask: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Where the centring moves the picture off the largest rectangle (:data:`SMALLER`),
+    the warp still lights as much as the paper-as-written warp placed by the same
+    centring rule (its rectangle taken within :data:`NEAR` of the largest, as ours is):
+    the warp's coverage, apart from where the picture is centred."""
+
+    def centred(*args: Any, **kwargs: Any) -> Rect:
+        return inscribed_rectangle(*args, **{**kwargs, "near": NEAR})  # (it passes 0)
+
+    monkeypatch.setattr(reference, "inscribed_rectangle", centred)
     s = surface(name)
     paper = compute_warp(
         s,
