@@ -17,7 +17,7 @@ grid at an angle ``a``, a column bends by ``kappa sin^2 a`` but its normal turns
 ``kappa |sin a|``, and along one diagonal the turns along x and along y add up. So on
 a developable surface (every cell bending one way only, whichever way its rulings run)
 a cell is also split until those two turns together are within
-:data:`BEND_ONE_WAY` (a wall meeting a cone rolled 19 deg: the cone's triangles turned
+:data:`TURN_ONE_WAY` (a wall meeting a cone rolled 19 deg: the cone's triangles turned
 up to 0.12 and showed 7.6e-4 in angle, exact vertices or not). A surface that bends
 both ways somewhere is split by its bends alone, as before: its own distortion dwarfs
 the chord's. Samples seen within 60 deg of grazing do not count for the turns: their
@@ -70,6 +70,11 @@ BEND = 0.15  # kappa h a cell may have before it is split
 # but for this error, so it is kept smaller); "one way": the other bend is this smaller
 BEND_ONE_WAY = 0.08
 ONE_WAY = 0.2
+# the normal's turn across a developable cell (along x and along y summed) before it is
+# split: the display's error grows as the turn squared, more where the surface is seen
+# obliquely (the wide cone rolled 70 deg, its rulings near the rows, seen down to 70 deg
+# from its normal: mean angle 8.3e-4 at 0.08, 2.8e-4 at 0.05 with the seams' wider blend)
+TURN_ONE_WAY = 0.05
 MAX_FACTOR = 8  # at most this many columns (rows) out of one
 # ... where every cell bends one way only (the display is to be exact): a wavy wall
 # whose waves are two cells long needs ~10 (8: mean angle 5.2e-4, 12: 1.5e-4)
@@ -340,11 +345,11 @@ def _excess(b: Bends) -> FloatArray:
     """Each cell's bend as a share of its limit (above 1: it is split): ``kappa h``
     along x and along y (:func:`_limits`), and where the surface is developable the
     normal's turns along x and along y summed - along one of the cell's diagonals,
-    a triangle's edge, they add up - to :data:`BEND_ONE_WAY`."""
+    a triangle's edge, they add up - to :data:`TURN_ONE_WAY`."""
     own: FloatArray = np.maximum(b.x, b.y) / _limits(b.x, b.y)
     if not _exact(b):
         return own
-    out: FloatArray = np.maximum(own, (b.turn_x + b.turn_y) / BEND_ONE_WAY)
+    out: FloatArray = np.maximum(own, (b.turn_x + b.turn_y) / TURN_ONE_WAY)
     return out
 
 
@@ -359,8 +364,8 @@ def _needs(b: Bends) -> tuple[FloatArray, FloatArray]:
     if not _exact(b):
         return own_x, own_y
     small, large = np.minimum(b.turn_x, b.turn_y), np.maximum(b.turn_x, b.turn_y)
-    f_small = np.maximum(1.0, np.ceil(2 * small / BEND_ONE_WAY))
-    f_large = np.ceil(large / (BEND_ONE_WAY - small / f_small))
+    f_small = np.maximum(1.0, np.ceil(2 * small / TURN_ONE_WAY))
+    f_large = np.ceil(large / (TURN_ONE_WAY - small / f_small))
     x_small = b.turn_x <= b.turn_y
     need_x = np.maximum(own_x, np.where(x_small, f_small, f_large))
     need_y = np.maximum(own_y, np.where(x_small, f_large, f_small))
