@@ -20,10 +20,13 @@ a cell is also split until those two turns together are within
 :data:`TURN_ONE_WAY` (a wall meeting a cone rolled 19 deg: the cone's triangles turned
 up to 0.12 and showed 7.6e-4 in angle, exact vertices or not). A surface that bends
 both ways somewhere is split by its bends alone, as before: its own distortion dwarfs
-the chord's. Samples seen within 60 deg of grazing do not count for the turns: their
-second differences mix in the silhouette, and the lines they ask for run through the
-whole frame (a cone wall's, seed 3 case 0: rows split 8x for the cone's grazing edge,
-whose chord triangles then pulled the warp's solve 1.5 px off the exact development).
+the chord's. Samples seen within 72 deg of grazing (:data:`GRAZING_TURN`) do not
+count for the turns: their second differences mix in the silhouette, and the lines they
+ask for run through the whole frame (a cone wall's, seed 3 case 0: rows split 8x for the
+cone's grazing edge, whose chord triangles then pulled the warp's solve 1.5 px off the
+exact development, before the sides were measured on the development). Between 60 and
+72 deg they do: a picture reaches there where a cone turns away (the wide cone rolled
+80 deg: size std 5.1e-4 without them, 4.5e-4 with).
 
 :func:`refine_grid` measures ``kappa h`` along x and along y in every cell of
 the base grid, from the surface itself (second differences every :data:`SAMPLE`
@@ -85,7 +88,11 @@ MIN_SPACING = 4  # pixels between two lines at least
 # the bend both ways (sqrt(|K|) h) below which a cell counts as bending one way only
 FLAT = 0.02
 GRAZING = 0.5  # the cosine between ray and normal below which a sample is seen grazing
-# (0.25: seed 3 case 0's size std 4.5e-4, 0.4: 2.0e-4, 0.5: 1.4e-4; 2.5e-4 before)
+# (0.25: seed 3 case 0's size std 4.5e-4, 0.4: 2.0e-4, 0.5: 1.4e-4; 2.5e-4 before,
+# all with chord triangles)
+# ... below which a sample's turns do not count (seed 3 case 0, developed sides: 5.0e-5
+# at 0.3, 4.8e-5 at 0.5); its bends always count, its bend both ways above GRAZING only
+GRAZING_TURN = 0.3
 ALONG = 4  # chords a side of the refined mesh is measured in on the development
 QUICK = 0.9  # a quick look that sees no bend above this share of the least limit ends it
 
@@ -249,13 +256,14 @@ def sampled_bends(
         # seen near grazing, the second differences mix in the silhouette: such a
         # sample cannot tell whether the surface bends both ways, and its turns, huge
         # per pixel, split only as its bends do (columns and rows split for it run
-        # through the whole frame)
+        # through the whole frame); its turns count down to GRAZING_TURN
         c = X[:, 1:-1, 1:-1]
         seen = np.abs(n[0] * c[0] + n[1] * c[1] + n[2] * c[2]) / (
             area * np.sqrt(c[0] ** 2 + c[1] ** 2 + c[2] ** 2)
         )
         grazing = seen < GRAZING
-        tx, ty = np.where(grazing, 0.0, tx), np.where(grazing, 0.0, ty)
+        turns = seen >= GRAZING_TURN
+        tx, ty = np.where(turns, tx, 0.0), np.where(turns, ty, 0.0)
         two_way = np.where(grazing, 0.0, two_way)
     if not kinks:  # a crease is one or two samples wide: curvature bends over three
         bx = np.pad(_least3(bx, 1), ((0, 0), (1, 1)))
