@@ -20,13 +20,14 @@ a cell is also split until those two turns together are within
 :data:`TURN_ONE_WAY` (a wall meeting a cone rolled 19 deg: the cone's triangles turned
 up to 0.12 and showed 7.6e-4 in angle, exact vertices or not). A surface that bends
 both ways somewhere is split by its bends alone, as before: its own distortion dwarfs
-the chord's. Samples seen within 72 deg of grazing (:data:`GRAZING_TURN`) do not
-count for the turns: their second differences mix in the silhouette, and the lines they
-ask for run through the whole frame (a cone wall's, seed 3 case 0: rows split 8x for the
-cone's grazing edge, whose chord triangles then pulled the warp's solve 1.5 px off the
-exact development, before the sides were measured on the development). Between 60 and
-72 deg they do: a picture reaches there where a cone turns away (the wide cone rolled
-80 deg: size std 5.1e-4 without them, 4.5e-4 with).
+the chord's. Samples seen more than 66 deg from their normal (:data:`GRAZING_TURN`) do
+not count for the turns: their second differences mix in the silhouette, and the lines
+they ask for run through the whole frame (a cone wall's, seed 3 case 0: rows split 8x
+for the cone's grazing edge, whose chord triangles then pulled the warp's solve 1.5 px
+off the exact development, before the sides were measured on the development). Between
+60 and 66 deg they do: a picture reaches there where a cone turns away (the wide cone
+rolled 80 deg: size std 5.1e-4 without them, 4.7e-4 with; down to 72 deg, 4.5e-4, but
+the cone wall's grid 105x50 -> 108x62).
 
 :func:`refine_grid` measures ``kappa h`` along x and along y in every cell of
 the base grid, from the surface itself (second differences every :data:`SAMPLE`
@@ -92,7 +93,7 @@ GRAZING = 0.5  # the cosine between ray and normal below which a sample is seen 
 # all with chord triangles)
 # ... below which a sample's turns do not count (seed 3 case 0, developed sides: 5.0e-5
 # at 0.3, 4.8e-5 at 0.5); its bends always count, its bend both ways above GRAZING only
-GRAZING_TURN = 0.3
+GRAZING_TURN = 0.4
 ALONG = 4  # chords a side of the refined mesh is measured in on the development
 QUICK = 0.9  # a quick look that sees no bend above this share of the least limit ends it
 
