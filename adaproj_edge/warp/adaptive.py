@@ -17,13 +17,17 @@ grid at an angle ``a``, a column bends by ``kappa sin^2 a`` but its normal turns
 ``kappa |sin a|``, and along one diagonal the turns along x and along y add up. So on
 a developable surface (every cell bending one way only, whichever way its rulings run)
 a cell is also split until those two turns together are within
-:data:`BEND_ONE_WAY` (a wall meeting a cone rolled 19 deg: the cone's triangles turned
+:data:`TURN_ONE_WAY` (a wall meeting a cone rolled 19 deg: the cone's triangles turned
 up to 0.12 and showed 7.6e-4 in angle, exact vertices or not). A surface that bends
 both ways somewhere is split by its bends alone, as before: its own distortion dwarfs
-the chord's. Samples seen within 60 deg of grazing do not count for the turns: their
-second differences mix in the silhouette, and the lines they ask for run through the
-whole frame (a cone wall's, seed 3 case 0: rows split 8x for the cone's grazing edge,
-whose chord triangles then pulled the warp's solve 1.5 px off the exact development).
+the chord's. Samples seen more than 66 deg from their normal (:data:`GRAZING_TURN`) do
+not count for the turns: their second differences mix in the silhouette, and the lines
+they ask for run through the whole frame (a cone wall's, seed 3 case 0: rows split 8x
+for the cone's grazing edge, whose chord triangles then pulled the warp's solve 1.5 px
+off the exact development, before the sides were measured on the development). Between
+60 and 66 deg they do: a picture reaches there where a cone turns away (the wide cone
+rolled 80 deg: size std 5.1e-4 without them, 4.7e-4 with; down to 72 deg, 4.5e-4, but
+the cone wall's grid 105x50 -> 108x62).
 
 :func:`refine_grid` measures ``kappa h`` along x and along y in every cell of
 the base grid, from the surface itself (second differences every :data:`SAMPLE`
@@ -70,6 +74,11 @@ BEND = 0.15  # kappa h a cell may have before it is split
 # but for this error, so it is kept smaller); "one way": the other bend is this smaller
 BEND_ONE_WAY = 0.08
 ONE_WAY = 0.2
+# the normal's turn across a developable cell (along x and along y summed) before it is
+# split: the display's error grows as the turn squared, more where the surface is seen
+# obliquely (the wide cone rolled 70 deg, its rulings near the rows, seen down to 70 deg
+# from its normal: mean angle 8.3e-4 at 0.08, 2.8e-4 at 0.05 with the seams' wider blend)
+TURN_ONE_WAY = 0.05
 MAX_FACTOR = 8  # at most this many columns (rows) out of one
 # ... where every cell bends one way only (the display is to be exact): a wavy wall
 # whose waves are two cells long needs ~10 (8: mean angle 5.2e-4, 12: 1.5e-4)
@@ -80,7 +89,11 @@ MIN_SPACING = 4  # pixels between two lines at least
 # the bend both ways (sqrt(|K|) h) below which a cell counts as bending one way only
 FLAT = 0.02
 GRAZING = 0.5  # the cosine between ray and normal below which a sample is seen grazing
-# (0.25: seed 3 case 0's size std 4.5e-4, 0.4: 2.0e-4, 0.5: 1.4e-4; 2.5e-4 before)
+# (0.25: seed 3 case 0's size std 4.5e-4, 0.4: 2.0e-4, 0.5: 1.4e-4; 2.5e-4 before,
+# all with chord triangles)
+# ... below which a sample's turns do not count (seed 3 case 0, developed sides: 5.0e-5
+# at 0.3, 4.8e-5 at 0.5); its bends always count, its bend both ways above GRAZING only
+GRAZING_TURN = 0.4
 ALONG = 4  # chords a side of the refined mesh is measured in on the development
 QUICK = 0.9  # a quick look that sees no bend above this share of the least limit ends it
 
@@ -244,13 +257,14 @@ def sampled_bends(
         # seen near grazing, the second differences mix in the silhouette: such a
         # sample cannot tell whether the surface bends both ways, and its turns, huge
         # per pixel, split only as its bends do (columns and rows split for it run
-        # through the whole frame)
+        # through the whole frame); its turns count down to GRAZING_TURN
         c = X[:, 1:-1, 1:-1]
         seen = np.abs(n[0] * c[0] + n[1] * c[1] + n[2] * c[2]) / (
             area * np.sqrt(c[0] ** 2 + c[1] ** 2 + c[2] ** 2)
         )
         grazing = seen < GRAZING
-        tx, ty = np.where(grazing, 0.0, tx), np.where(grazing, 0.0, ty)
+        turns = seen >= GRAZING_TURN
+        tx, ty = np.where(turns, tx, 0.0), np.where(turns, ty, 0.0)
         two_way = np.where(grazing, 0.0, two_way)
     if not kinks:  # a crease is one or two samples wide: curvature bends over three
         bx = np.pad(_least3(bx, 1), ((0, 0), (1, 1)))
@@ -340,11 +354,11 @@ def _excess(b: Bends) -> FloatArray:
     """Each cell's bend as a share of its limit (above 1: it is split): ``kappa h``
     along x and along y (:func:`_limits`), and where the surface is developable the
     normal's turns along x and along y summed - along one of the cell's diagonals,
-    a triangle's edge, they add up - to :data:`BEND_ONE_WAY`."""
+    a triangle's edge, they add up - to :data:`TURN_ONE_WAY`."""
     own: FloatArray = np.maximum(b.x, b.y) / _limits(b.x, b.y)
     if not _exact(b):
         return own
-    out: FloatArray = np.maximum(own, (b.turn_x + b.turn_y) / BEND_ONE_WAY)
+    out: FloatArray = np.maximum(own, (b.turn_x + b.turn_y) / TURN_ONE_WAY)
     return out
 
 
@@ -359,8 +373,8 @@ def _needs(b: Bends) -> tuple[FloatArray, FloatArray]:
     if not _exact(b):
         return own_x, own_y
     small, large = np.minimum(b.turn_x, b.turn_y), np.maximum(b.turn_x, b.turn_y)
-    f_small = np.maximum(1.0, np.ceil(2 * small / BEND_ONE_WAY))
-    f_large = np.ceil(large / (BEND_ONE_WAY - small / f_small))
+    f_small = np.maximum(1.0, np.ceil(2 * small / TURN_ONE_WAY))
+    f_large = np.ceil(large / (TURN_ONE_WAY - small / f_small))
     x_small = b.turn_x <= b.turn_y
     need_x = np.maximum(own_x, np.where(x_small, f_small, f_large))
     need_y = np.maximum(own_y, np.where(x_small, f_large, f_small))

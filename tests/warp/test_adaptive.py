@@ -9,9 +9,9 @@ from adaproj_edge.geometry.analytic import ConeWall, get_surface, simulate_surfa
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.warp.adaptive import (
     BEND,
-    BEND_ONE_WAY,
     MAX_FACTOR_ONE_WAY,
     MIN_SPACING,
+    TURN_ONE_WAY,
     adaptive_mesh,
     bends,
     refine_grid,
@@ -167,4 +167,4 @@ def test_oblique_rulings_are_split_until_every_triangle_turns_within_the_limit()
         assert turn.size > 100, name
         worst[name] = float(turn.max())
     # the grid measures the surface every 8 px: a hair above the limit between samples
-    assert max(worst.values()) <= 1.05 * BEND_ONE_WAY, worst
+    assert max(worst.values()) <= 1.05 * TURN_ONE_WAY, worst

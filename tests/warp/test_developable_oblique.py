@@ -45,20 +45,13 @@ WIDE_CONE = ConeWall("wide-cone", x0=-0.7, z0=1.8, apex_y=-0.9, alpha=0.5, turn=
 CASES = [
     pytest.param(CONE, id="cone"),
     pytest.param(WIDE_CONE, id="wide-cone"),
-    # the wide cone rolled 70 deg, its rulings nearly along the rows: short of the line
-    # near where the cone turns away from the projector (mean angle 1.05e-3, size
-    # 1.1e-3, worst 4-px triangle 0.039). Not a crease (nothing is unfolded) nor the
-    # seams (without their blend: 1.55e-3). Conformal, plain uniform grids: 80x50
-    # 9.9e-4, 160x100 5.3e-4 (first order in the cell's size); with the cone's exact
-    # development at the vertices instead of the solve's: 6.9e-4, 2.0e-4 (the display's
-    # chord error, second order; 8.5e-4 on the adaptive 71x47 grid). So both the solve
-    # on chord shapes and the display's chords fall short here; a finer turn target
-    # (BEND_ONE_WAY 0.04: 101x64) gives 6.4e-4
-    pytest.param(
-        turned(WIDE_CONE, 0.0, 0.0, 70.0),
-        id="wide-cone-rolled",
-        marks=pytest.mark.xfail(reason="short near the cone's turn-away", strict=True),
-    ),
+    # the wide cone rolled 70 deg, its rulings nearly along the rows, seen down to 70 deg
+    # from its normal where it turns away: the display's error there was the seams' kink
+    # (each triangle's plane places the pixels on an edge differently) over a band of 0.4
+    # of the refined cells' height, and triangles whose normals turned by up to 0.08 (mean
+    # angle 8.3e-4, size 9.8e-4, the same with the cone's exact development at the
+    # vertices). Blended over 0.7 of the height and split to turns of 0.05: 2.8e-4, 4.5e-4
+    pytest.param(turned(WIDE_CONE, 0.0, 0.0, 70.0), id="wide-cone-rolled"),
     pytest.param(
         turned(Cylinder("column", cx=0.0, cz=2.3, r=0.75, concave=False), 25.0, 20.0, 0.0),
         id="column-oblique",
