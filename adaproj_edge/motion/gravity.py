@@ -40,7 +40,13 @@ rotation. The estimate is built in three steps:
    force by degrees). The rate's low-pass
    shows a turn late while its acceleration is there from its start, so the blocks
    used in the ``recall_s`` before a turn is seen are taken back out of the fit.
-   Meanwhile the gyro carries the estimate.
+   Meanwhile the gyro carries the estimate, and the gyro's offset, not learnt yet
+   on a short session under a strong tremor, tips it by up to a degree a second:
+   the accelerometer is used again as soon as the low-passed rate is back under
+   ``max_rate`` (that low-pass already shows a turn's end some 0.3 s late; a
+   further hold left the estimate carried by the gyro into the first still
+   moments after a move, 1.2-1.35 degrees off on 4-s hands at 0.5 degrees of
+   tremor), and only as much as the rate's lag is taken back before a turn.
 
 The estimate in P is the fitted line's value now, turned back by the integrated gyro.
 The accelerometer's zero-g offset tilts the result directly (10 mg is 0.6 degrees):
@@ -89,10 +95,14 @@ class GravitySettings:
     rate_tau_s : float
         Time constant of each of the two low-passes of that rate (the tremor out).
     hold_s : float
-        Seconds after a deliberate turn before the accelerometer is used again.
+        Seconds after a deliberate turn (its low-passed rate back under
+        ``max_rate``) before the accelerometer is used again (0: at once; the
+        low-pass's own lag is the hold).
     recall_s : float
         Samples used within this many seconds before a deliberate turn is seen are
-        taken back out (the turn's rate shows late, its acceleration at once).
+        taken back out (the turn's rate shows late, its acceleration at once: about
+        two of ``rate_tau_s`` and the rise to ``max_rate``; at 0.3 s a move's start
+        was left in the fit on some hands).
     lever_tau_s : float
         Memory of the lever's least squares (seconds).
     max_lever : float
@@ -115,6 +125,10 @@ class GravitySettings:
         acceleration is slow and the lever does not explain it); 0: no such test.
     shift_tau_s : float
         Time constant of each of the two low-passes of that force (the tremor out).
+    shift_hold_s : float
+        Seconds after such a shift (or a move the caller reports) before the
+        accelerometer is used again: its force's low-pass is quick, and the end of
+        the shift's slowing down is still in the samples.
     shift_escape_s : float
         After this long moved so without turning the samples are used again (a fit
         that went wrong is not locked out of its own correction).
@@ -128,8 +142,8 @@ class GravitySettings:
     max_departure: float = 3.0
     max_rate: float = 0.04
     rate_tau_s: float = 0.15
-    hold_s: float = 0.3
-    recall_s: float = 0.5
+    hold_s: float = 0.0
+    recall_s: float = 0.4
     lever_tau_s: float = 3.0
     max_lever: float = 1.0
     warmup_s: float = 0.3
@@ -139,6 +153,7 @@ class GravitySettings:
     offset_learnt_s: float = 2.0
     shift_tau_s: float = 0.05
     shift_escape_s: float = 2.0
+    shift_hold_s: float = 0.3
 
 
 def _skew(v: FloatArray) -> FloatArray:
@@ -226,7 +241,8 @@ class GravityFilter:
         self.lever: FloatArray = np.zeros(3)  # rho (3,): centre of rotation -> IMU, metres, frame P
         self._rate.reset()
         self._steps = 0
-        self._quiet_s = math.inf  # since the last deliberate turn (none yet)
+        self._quiet_s = math.inf  # since the last deliberate turn or shift (none yet)
+        self._hold_s = 0.0  # how long the last one holds the accelerometer out after it
         self._age_s = 0.0  # since the first sample
         self._block = np.zeros(5)  # sum w x (3), sum w, sum w t
         self._block_s = 0.0
@@ -302,12 +318,14 @@ class GravityFilter:
         shifted = self._shifted(x, dev * s.shake <= s.max_departure, dt_prev, turning)
         if not still or turning or shifted:
             self._quiet_s = 0.0
+            # a shift (or the caller's move) has no rate whose low-pass lags its end
+            self._hold_s = s.hold_s if still and not shifted else max(s.hold_s, s.shift_hold_s)
             self._recall(t_prev - s.recall_s)
             self._block[:] = 0.0
             self._block_s = 0.0
             return
         self._quiet_s += dt_prev
-        if self._quiet_s < s.hold_s:
+        if self._quiet_s < self._hold_s:
             return
         # beyond max_departure, not gravity and a swing (a reading clipped at full
         # scale, a knock): not used
