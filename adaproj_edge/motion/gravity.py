@@ -32,21 +32,23 @@ rotation. The estimate is built in three steps:
    their magnitude departs from gravity (``1 / (1 + (d / shake))^2``: a knock, a
    swing the lever does not explain; beyond ``max_departure`` not used at all: a
    reading clipped at full scale), and not used while the device turns on purpose
-   (the gyro rate low-passed by ``rate_tau_s``, over ``max_rate``, and ``hold_s``
-   after) or while the caller says it moves (``still=False``): a deliberate move
-   accelerates the device slowly, which no low-pass takes out; nor while the force,
+   (the gyro rate low-passed by ``rate_tau_s``, over ``max_rate``, and
+   ``turn_hold_s`` after) or while the caller says it moves (``still=False``): a
+   deliberate move accelerates the device slowly, which no low-pass takes out; nor while the force,
    low-passed in G, departs from the fitted gravity by more than ``shift`` (a hand
    shifting the device sideways hardly turns it, and its slow acceleration tilts the
    force by degrees). The rate's low-pass
    shows a turn late while its acceleration is there from its start, so the blocks
-   used in the ``recall_s`` before a turn is seen are taken back out of the fit.
+   used in the ``turn_recall_s`` before a turn is seen are taken back out of the fit
+   (``recall_s`` before a shift or a move the caller reports; ``hold_s`` after it).
    Meanwhile the gyro carries the estimate, and the gyro's offset, not learnt yet
    on a short session under a strong tremor, tips it by up to a degree a second:
-   the accelerometer is used again as soon as the low-passed rate is back under
-   ``max_rate`` (that low-pass already shows a turn's end some 0.3 s late; a
-   further hold left the estimate carried by the gyro into the first still
-   moments after a move, 1.2-1.35 degrees off on 4-s hands at 0.5 degrees of
-   tremor), and only as much as the rate's lag is taken back before a turn.
+   after a turn the accelerometer is used again as soon as the low-passed rate is
+   back under ``max_rate`` (``turn_hold_s``: that low-pass already shows a turn's
+   end some 0.3 s late; a further 0.3-s hold left the estimate carried by the gyro
+   into the first still moments after a move, 1.2-1.35 degrees off on 4-s hands at
+   0.5 degrees of tremor), and only about the rate's lag is taken back before it
+   (``turn_recall_s``).
 
 The estimate in P is the fitted line's value now, turned back by the integrated gyro.
 The accelerometer's zero-g offset tilts the result directly (10 mg is 0.6 degrees):
@@ -95,10 +97,17 @@ class GravitySettings:
     rate_tau_s : float
         Time constant of each of the two low-passes of that rate (the tremor out).
     hold_s : float
-        Seconds after a deliberate turn (its low-passed rate back under
-        ``max_rate``) before the accelerometer is used again (0: at once; the
-        low-pass's own lag is the hold).
+        Seconds after a sideways shift (below) or a move the caller reports before
+        the accelerometer is used again (the force's low-pass is quick, and the end
+        of the shift's slowing down is still in the samples).
     recall_s : float
+        Samples used within this many seconds before such a move is seen are taken
+        back out.
+    turn_hold_s : float
+        Seconds after a deliberate turn (its low-passed rate back under
+        ``max_rate``) before the accelerometer is used again (0: at once; that
+        low-pass's own lag, some 0.3 s, is the hold).
+    turn_recall_s : float
         Samples used within this many seconds before a deliberate turn is seen are
         taken back out (the turn's rate shows late, its acceleration at once: about
         two of ``rate_tau_s`` and the rise to ``max_rate``; at 0.3 s a move's start
@@ -125,10 +134,6 @@ class GravitySettings:
         acceleration is slow and the lever does not explain it); 0: no such test.
     shift_tau_s : float
         Time constant of each of the two low-passes of that force (the tremor out).
-    shift_hold_s : float
-        Seconds after such a shift (or a move the caller reports) before the
-        accelerometer is used again: its force's low-pass is quick, and the end of
-        the shift's slowing down is still in the samples.
     shift_escape_s : float
         After this long moved so without turning the samples are used again (a fit
         that went wrong is not locked out of its own correction).
@@ -142,8 +147,10 @@ class GravitySettings:
     max_departure: float = 3.0
     max_rate: float = 0.04
     rate_tau_s: float = 0.15
-    hold_s: float = 0.0
-    recall_s: float = 0.4
+    hold_s: float = 0.3
+    recall_s: float = 0.5
+    turn_hold_s: float = 0.0
+    turn_recall_s: float = 0.4
     lever_tau_s: float = 3.0
     max_lever: float = 1.0
     warmup_s: float = 0.3
@@ -153,7 +160,6 @@ class GravitySettings:
     offset_learnt_s: float = 2.0
     shift_tau_s: float = 0.05
     shift_escape_s: float = 2.0
-    shift_hold_s: float = 0.3
 
 
 def _skew(v: FloatArray) -> FloatArray:
@@ -318,9 +324,10 @@ class GravityFilter:
         shifted = self._shifted(x, dev * s.shake <= s.max_departure, dt_prev, turning)
         if not still or turning or shifted:
             self._quiet_s = 0.0
-            # a shift (or the caller's move) has no rate whose low-pass lags its end
-            self._hold_s = s.hold_s if still and not shifted else max(s.hold_s, s.shift_hold_s)
-            self._recall(t_prev - s.recall_s)
+            # a turn's rate is low-passed: it shows late, and its end later still
+            just_turning = still and not shifted
+            self._hold_s = s.turn_hold_s if just_turning else s.hold_s
+            self._recall(t_prev - (s.turn_recall_s if just_turning else s.recall_s))
             self._block[:] = 0.0
             self._block_s = 0.0
             return
@@ -371,7 +378,8 @@ class GravityFilter:
             self._used_s += wsum
         self._block[:] = 0.0
         self._block_s = 0.0
-        while self._recent and self._recent[0][0] < self._age_s - self.settings.recall_s:
+        keep = max(self.settings.recall_s, self.settings.turn_recall_s)
+        while self._recent and self._recent[0][0] < self._age_s - keep:
             self._recent.popleft()
 
     def _recall(self, since: float) -> None:
