@@ -32,15 +32,23 @@ rotation. The estimate is built in three steps:
    their magnitude departs from gravity (``1 / (1 + (d / shake))^2``: a knock, a
    swing the lever does not explain; beyond ``max_departure`` not used at all: a
    reading clipped at full scale), and not used while the device turns on purpose
-   (the gyro rate low-passed by ``rate_tau_s``, over ``max_rate``, and ``hold_s``
-   after) or while the caller says it moves (``still=False``): a deliberate move
-   accelerates the device slowly, which no low-pass takes out; nor while the force,
+   (the gyro rate low-passed by ``rate_tau_s``, over ``max_rate``, and
+   ``turn_hold_s`` after) or while the caller says it moves (``still=False``): a
+   deliberate move accelerates the device slowly, which no low-pass takes out; nor while the force,
    low-passed in G, departs from the fitted gravity by more than ``shift`` (a hand
    shifting the device sideways hardly turns it, and its slow acceleration tilts the
    force by degrees). The rate's low-pass
    shows a turn late while its acceleration is there from its start, so the blocks
-   used in the ``recall_s`` before a turn is seen are taken back out of the fit.
-   Meanwhile the gyro carries the estimate.
+   used in the ``turn_recall_s`` before a turn is seen are taken back out of the fit
+   (``recall_s`` before a shift or a move the caller reports; ``hold_s`` after it).
+   Meanwhile the gyro carries the estimate, and the gyro's offset, not learnt yet
+   on a short session under a strong tremor, tips it by up to a degree a second:
+   after a turn the accelerometer is used again as soon as the low-passed rate is
+   back under ``max_rate`` (``turn_hold_s``: that low-pass already shows a turn's
+   end some 0.3 s late; a further 0.3-s hold left the estimate carried by the gyro
+   into the first still moments after a move, 1.2-1.35 degrees off on 4-s hands at
+   0.5 degrees of tremor), and only about the rate's lag is taken back before it
+   (``turn_recall_s``).
 
 The estimate in P is the fitted line's value now, turned back by the integrated gyro.
 The accelerometer's zero-g offset tilts the result directly (10 mg is 0.6 degrees):
@@ -89,10 +97,21 @@ class GravitySettings:
     rate_tau_s : float
         Time constant of each of the two low-passes of that rate (the tremor out).
     hold_s : float
-        Seconds after a deliberate turn before the accelerometer is used again.
+        Seconds after a sideways shift (below) or a move the caller reports before
+        the accelerometer is used again (the force's low-pass is quick, and the end
+        of the shift's slowing down is still in the samples).
     recall_s : float
+        Samples used within this many seconds before such a move is seen are taken
+        back out.
+    turn_hold_s : float
+        Seconds after a deliberate turn (its low-passed rate back under
+        ``max_rate``) before the accelerometer is used again (0: at once; that
+        low-pass's own lag, some 0.3 s, is the hold).
+    turn_recall_s : float
         Samples used within this many seconds before a deliberate turn is seen are
-        taken back out (the turn's rate shows late, its acceleration at once).
+        taken back out (the turn's rate shows late, its acceleration at once: about
+        two of ``rate_tau_s`` and the rise to ``max_rate``; at 0.3 s a move's start
+        was left in the fit on some hands).
     lever_tau_s : float
         Memory of the lever's least squares (seconds).
     max_lever : float
@@ -130,6 +149,8 @@ class GravitySettings:
     rate_tau_s: float = 0.15
     hold_s: float = 0.3
     recall_s: float = 0.5
+    turn_hold_s: float = 0.0
+    turn_recall_s: float = 0.4
     lever_tau_s: float = 3.0
     max_lever: float = 1.0
     warmup_s: float = 0.3
@@ -226,7 +247,8 @@ class GravityFilter:
         self.lever: FloatArray = np.zeros(3)  # rho (3,): centre of rotation -> IMU, metres, frame P
         self._rate.reset()
         self._steps = 0
-        self._quiet_s = math.inf  # since the last deliberate turn (none yet)
+        self._quiet_s = math.inf  # since the last deliberate turn or shift (none yet)
+        self._hold_s = 0.0  # how long the last one holds the accelerometer out after it
         self._age_s = 0.0  # since the first sample
         self._block = np.zeros(5)  # sum w x (3), sum w, sum w t
         self._block_s = 0.0
@@ -302,12 +324,15 @@ class GravityFilter:
         shifted = self._shifted(x, dev * s.shake <= s.max_departure, dt_prev, turning)
         if not still or turning or shifted:
             self._quiet_s = 0.0
-            self._recall(t_prev - s.recall_s)
+            # a turn's rate is low-passed: it shows late, and its end later still
+            just_turning = still and not shifted
+            self._hold_s = s.turn_hold_s if just_turning else s.hold_s
+            self._recall(t_prev - (s.turn_recall_s if just_turning else s.recall_s))
             self._block[:] = 0.0
             self._block_s = 0.0
             return
         self._quiet_s += dt_prev
-        if self._quiet_s < s.hold_s:
+        if self._quiet_s < self._hold_s:
             return
         # beyond max_departure, not gravity and a swing (a reading clipped at full
         # scale, a knock): not used
@@ -353,7 +378,8 @@ class GravityFilter:
             self._used_s += wsum
         self._block[:] = 0.0
         self._block_s = 0.0
-        while self._recent and self._recent[0][0] < self._age_s - self.settings.recall_s:
+        keep = max(self.settings.recall_s, self.settings.turn_recall_s)
+        while self._recent and self._recent[0][0] < self._age_s - keep:
             self._recent.popleft()
 
     def _recall(self, since: float) -> None:

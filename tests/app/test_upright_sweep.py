@@ -6,11 +6,12 @@ Each case runs the runtime's IMU chain on ten simulated hands
 (:func:`~adaproj_edge.app.upright_score.trace_upright`: no depth, no warps; about a
 third of a second each) and scores the largest angle while the hand holds still. The
 target is a degree on walls (``tools/bench_handheld.py --only sweep`` runs the whole
-sweep); met up to 0.3 degrees of tremor on these 4-s hands, with the gravity estimate
-fitting the drift of the gyro's offset itself (``docs/handheld.md``). At 0.5 degrees
-the 4-s hands leave too little still time to fit the offset's drift on every seed
-(over a degree on some, not asserted); the 6-s hands of the bench are asserted at
-roll 30, where the seeds' median is highest at that tremor.
+sweep); met at every tremor up to 0.5 degrees on these 4-s hands. At 0.5 degrees the
+gyro's offset is not learnt within 4 s and carries the estimate off while the
+accelerometer waits out a move: with a further 0.3-s hold after each turn and 0.5 s
+taken back before it, 1.24 / 1.31 / 1.35 degrees at rolls 0 / 12 / 30 (seeds 2, 9,
+5), now within 0.84 (``docs/handheld.md``). Asserted at roll 30, the worst of the
+three then.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ def _worst(tremor: float, roll: float, seconds: float) -> tuple[float, int]:
 
 @pytest.mark.parametrize(
     ("tremor", "roll", "seconds"),
-    [(0.05, 0.0, SECONDS), (0.15, 30.0, SECONDS), (0.3, 12.0, SECONDS), (0.5, 30.0, 6.0)],
+    [(0.05, 0.0, SECONDS), (0.15, 30.0, SECONDS), (0.3, 12.0, SECONDS), (0.5, 30.0, SECONDS)],
 )
 def test_the_worst_seed_keeps_walls_upright(tremor: float, roll: float, seconds: float) -> None:
     err, seed = _worst(tremor, roll, seconds)
