@@ -102,6 +102,13 @@ class BandedLeastSquares:
         flat = (band + lo - hi) * self.nf + hi
         self.dump = (band + 1) * self.nf
         self.flat = np.where(ok, flat, self.dump).ravel()
+        # the pairs that land in the band (both free), in (row, pair) order: their
+        # coefficients' places in the (m, k) values, their rows and band places (the
+        # others are not multiplied at all; the sums are added in the same order)
+        used = np.flatnonzero(ok.ravel())
+        rows, pair = np.divmod(used, ia.size)
+        self.used_a, self.used_b = rows * k + ia[pair], rows * k + ib[pair]
+        self.used_rows, self.used_flat = rows, self.flat[used]
         self.sparse = (self.nf * band * band > SPARSE_ABOVE) if sparse is None else sparse
         if self.sparse:
             self._sparse_pattern()
@@ -124,9 +131,10 @@ class BandedLeastSquares:
 
     def normal_band(self, vals: FloatArray, weights: FloatArray) -> FloatArray:
         """The upper band (band + 1, nf) of ``A^T W A``."""
-        prod = vals[:, self.pair_a] * vals[:, self.pair_b] * weights[:, None]
-        ab = np.bincount(self.flat, weights=prod.ravel(), minlength=self.dump + 1)
-        out: FloatArray = ab[: self.dump].reshape(self.band + 1, self.nf).astype(np.float64)
+        v = np.ravel(vals)
+        prod = np.take(v, self.used_a) * np.take(v, self.used_b) * np.take(weights, self.used_rows)
+        ab = np.bincount(self.used_flat, weights=prod, minlength=self.dump)
+        out: FloatArray = ab.reshape(self.band + 1, self.nf).astype(np.float64)
         return out
 
     def _solve_normal(self, ab: FloatArray, b: FloatArray) -> FloatArray:
