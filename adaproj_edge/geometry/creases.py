@@ -43,7 +43,9 @@ only if a patch is bent: two planes are the corners' own, a curved crease seen a
 a ruling of its curved side, or a sliver at a corner). The patches are fitted only
 next to a kink (a triangle at the candidate's corners whose probes are not a
 quadratic's to ``KINK``): sensed depth smoothed across a jump is rough and its
-corners' planes are far apart, yet it holds no crease for them to find.
+corners' planes are far apart, yet it holds no crease for them to find. On sensed depth
+snapped to two walls or more, a candidate across the line where two of them meet takes
+their planes without a fit (:mod:`adaproj_edge.geometry.wall_crease`).
 """
 
 from __future__ import annotations
