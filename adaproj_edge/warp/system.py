@@ -84,8 +84,12 @@ class BandedLeastSquares:
         self.nf = int(free.size)
         if self.nf == 0:
             raise WarpError("no free unknowns in the warp system")
-        fc = free_index[np.where(cols >= 0, cols, n)]  # (m, k) free index or -1
+        self.cols_or_n = np.where(cols >= 0, cols, n)
+        fc = free_index[self.cols_or_n]  # (m, k) free index or -1
         self.fc = fc
+        # the coefficients of free unknowns: their places in (m, k) order, free indices
+        self.free_at = np.flatnonzero(fc >= 0)
+        self.free_fc = fc.reshape(-1)[self.free_at]
         k = cols.shape[1]
         ia, ib = np.triu_indices(k)  # pairs (a, b), a <= b within a row
         self.pair_a = ia
@@ -159,11 +163,10 @@ class BandedLeastSquares:
     ) -> FloatArray:
         """``A^T W (c - A_fixed x_fixed)`` over the free unknowns."""
         xf = np.append(np.where(self.fixed, x_fixed, 0.0), 0.0)
-        c = const - np.sum(vals * xf[np.where(self.cols >= 0, self.cols, self.n)], axis=1)
+        c = const - np.sum(vals * xf[self.cols_or_n], axis=1)
         contrib = vals * (weights * c)[:, None]
-        ok = self.fc >= 0
-        out = np.bincount(self.fc[ok], weights=contrib[ok], minlength=self.nf).astype(np.float64)
-        return out
+        out = np.bincount(self.free_fc, weights=np.take(contrib, self.free_at), minlength=self.nf)
+        return out.astype(np.float64)
 
     def solve(
         self, vals: FloatArray, const: FloatArray, weights: FloatArray, x_fixed: FloatArray
