@@ -94,25 +94,23 @@ class BandedLeastSquares:
         ia, ib = np.triu_indices(k)  # pairs (a, b), a <= b within a row
         self.pair_a = ia
         self.pair_b = ib
-        i = fc[:, ia]
-        j = fc[:, ib]
-        ok = (i >= 0) & (j >= 0)
-        lo = np.minimum(i, j)
-        hi = np.maximum(i, j)
-        band = int(np.max(np.where(ok, hi - lo, 0))) if ok.any() else 0
+        # the pairs that land in the band (both free), in (row, pair) order: their
+        # coefficients' places in the (m, k) values, their rows and band places (only
+        # these are multiplied; the sums are added in the same order)
+        i = fc[:, ia].reshape(-1)
+        j = fc[:, ib].reshape(-1)
+        used = np.flatnonzero(np.minimum(i, j) >= 0)
+        i, j = np.take(i, used), np.take(j, used)
+        lo, hi = np.minimum(i, j), np.maximum(i, j)
+        band = int((hi - lo).max()) if used.size else 0
         self.band = band
         # upper band storage ab[band + lo - hi, hi]; off-diagonal pairs appear once per
         # (a, b) with a < b, which is the whole symmetric contribution for the upper part.
-        flat = (band + lo - hi) * self.nf + hi
         self.dump = (band + 1) * self.nf
-        self.flat = np.where(ok, flat, self.dump).ravel()
-        # the pairs that land in the band (both free), in (row, pair) order: their
-        # coefficients' places in the (m, k) values, their rows and band places (the
-        # others are not multiplied at all; the sums are added in the same order)
-        used = np.flatnonzero(ok.ravel())
+        self.used_flat = (band + lo - hi) * self.nf + hi
         rows, pair = np.divmod(used, ia.size)
         self.used_a, self.used_b = rows * k + ia[pair], rows * k + ib[pair]
-        self.used_rows, self.used_flat = rows, self.flat[used]
+        self.used_rows = rows
         self.sparse = (self.nf * band * band > SPARSE_ABOVE) if sparse is None else sparse
         if self.sparse:
             self._sparse_pattern()
@@ -121,7 +119,7 @@ class BandedLeastSquares:
         """The symmetric CSC pattern of the normal matrix, and where each of its entries
         sits in the band storage."""
         nf, band = self.nf, self.band
-        used = np.unique(self.flat[self.flat < self.dump])
+        used = np.unique(self.used_flat)
         hi = used % nf
         lo = used // nf - band + hi
         off = lo != hi
