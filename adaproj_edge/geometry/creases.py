@@ -43,7 +43,9 @@ only if a patch is bent: two planes are the corners' own, a curved crease seen a
 a ruling of its curved side, or a sliver at a corner). The patches are fitted only
 next to a kink (a triangle at the candidate's corners whose probes are not a
 quadratic's to ``KINK``): sensed depth smoothed across a jump is rough and its
-corners' planes are far apart, yet it holds no crease for them to find.
+corners' planes are far apart, yet it holds no crease for them to find. On sensed depth
+snapped to two walls or more, a candidate across the line where two of them meet takes
+their planes without a fit (:mod:`adaproj_edge.geometry.wall_crease`).
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ from adaproj_edge.geometry.planes import plane_equations
 from adaproj_edge.geometry.ruled_crease import ruled_planes
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
+from adaproj_edge.geometry.wall_crease import wall_planes
 
 ROUGH = 0.02  # surface-to-triangle distance, relative to the triangle's size, of a crease
 SLIGHT = 1e-3  # ... of one it may clip a sliver off
@@ -168,6 +171,7 @@ def unfold_creases(
         area2,
         xs.transpose(2, 1, 0),
         ruled_triangles(surface, points, tris),
+        snapped_walls(surface),
     )
 
 
@@ -176,6 +180,15 @@ def sensed(surface: Surface) -> bool:
     ``"depth"``): known to the sensor's millimetres, except on the planes it was
     snapped to (:func:`~adaproj_edge.geometry.planes.snap_planes`)."""
     return surface.meta.get("source") == "depth"
+
+
+def snapped_walls(surface: Surface) -> FloatArray | None:
+    """The planes (k, 4) a :func:`sensed` ``surface`` was snapped to, where there are
+    two or more (the ``walls`` of :func:`unfold_measured`); else None."""
+    if not sensed(surface):
+        return None
+    eq = plane_equations(surface.meta)
+    return eq if eq.shape[0] >= 2 else None
 
 
 def ruled_triangles(
@@ -197,7 +210,7 @@ def ruled_triangles(
     time). Between two snapped walls everything is tried as before: the corner's
     crease triangles, in the lattice cells across the crease, have corners on neither
     plane, and how far those reach depends on how the planes were fitted."""
-    if not sensed(surface) or plane_equations(surface.meta).shape[0] >= 2:
+    if not sensed(surface) or snapped_walls(surface) is not None:
         return None
     return np.zeros(tris.shape[0], dtype=bool)
 
@@ -210,12 +223,16 @@ def unfold_measured(
     area2: FloatArray,
     probes: FloatArray,
     may_rule: NDArray[np.bool_] | None = None,
+    walls: FloatArray | None = None,
 ) -> Unfolding:
     """:func:`unfold_creases` of triangles whose corners ``tri_pts`` (T, 3, 3), unit
     normals (3, T) and twice the areas (T,) (:func:`~adaproj_edge.geometry.triangles.
     planes_first`) and surface at the probes (3, 4, T) (component-first) are known.
     ``may_rule`` (T,): where the sides' patches may be tried (a straight crease between
-    curved sides, :mod:`~adaproj_edge.geometry.ruled_crease`; None: everywhere)."""
+    curved sides, :mod:`~adaproj_edge.geometry.ruled_crease`; None: everywhere).
+    ``walls`` (k, 4): the planes sensed depth was snapped to (:func:`snapped_walls`); a
+    candidate across the line where two of them meet takes their planes
+    (:mod:`~adaproj_edge.geometry.wall_crease`), without a search for its sides."""
     size = np.sqrt(area2)
     # the probes' distances (4, T) to their triangle's plane
     signed = (
@@ -336,9 +353,20 @@ def unfold_measured(
         # smoothed across a jump: rough, its corners' planes far apart, yet no crease)
         # holds no crease for the patches to find, and trying costs ~0.4 ms each
         retry = retry[_kinked(tris, signed, size, points.shape[0])[tris[cand[retry]]].any(axis=1)]
+    ruled = np.zeros(cand.size, dtype=bool)
+    if retry.size and walls is not None:
+        # between two snapped walls: their planes, not their patches' (found by the
+        # same rule wherever the display's and the meshes' grids look)
+        on_walls = wall_planes(
+            retry, cand, tri_pts, probes, size, walls, (na, pa, nb, pb), pair_a, lone,
+            RULED_CREASE_COS,
+        )  # fmt: skip
+        straight[on_walls] = True
+        ruled[on_walls] = True
+        curved_crease[on_walls] = False
+        retry = retry[~np.isin(retry, on_walls)]
     if retry.size and may_rule is not None:
         retry = retry[may_rule[cand[retry]]]
-    ruled = np.zeros(cand.size, dtype=bool)
     if retry.size:
         excluded = np.zeros(tris.shape[0], dtype=bool)
         excluded[rough_t[differ]] = True

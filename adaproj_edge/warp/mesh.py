@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.errors import WarpError
-from adaproj_edge.geometry.creases import ruled_triangles, unfold_measured
+from adaproj_edge.geometry.creases import ruled_triangles, snapped_walls, unfold_measured
 from adaproj_edge.geometry.developed import developed_lengths
 from adaproj_edge.geometry.planes import on_planes, plane_equations
 from adaproj_edge.geometry.surface import Surface
@@ -351,6 +351,7 @@ class MeshGeometry:
             area2[rows],
             probes[:, :, rows],
             None if rule is None else rule[rows],
+            snapped_walls(surface),
         )
         mine, mine_n = corners[:, :, rows], normals[:, rows]
         folded = np.flatnonzero(unfolding.folded)

@@ -84,24 +84,33 @@ class BandedLeastSquares:
         self.nf = int(free.size)
         if self.nf == 0:
             raise WarpError("no free unknowns in the warp system")
-        fc = free_index[np.where(cols >= 0, cols, n)]  # (m, k) free index or -1
+        self.cols_or_n = np.where(cols >= 0, cols, n)
+        fc = free_index[self.cols_or_n]  # (m, k) free index or -1
         self.fc = fc
+        # the coefficients of free unknowns: their places in (m, k) order, free indices
+        self.free_at = np.flatnonzero(fc >= 0)
+        self.free_fc = fc.reshape(-1)[self.free_at]
         k = cols.shape[1]
         ia, ib = np.triu_indices(k)  # pairs (a, b), a <= b within a row
         self.pair_a = ia
         self.pair_b = ib
-        i = fc[:, ia]
-        j = fc[:, ib]
-        ok = (i >= 0) & (j >= 0)
-        lo = np.minimum(i, j)
-        hi = np.maximum(i, j)
-        band = int(np.max(np.where(ok, hi - lo, 0))) if ok.any() else 0
+        # the pairs that land in the band (both free), in (row, pair) order: their
+        # coefficients' places in the (m, k) values, their rows and band places (only
+        # these are multiplied; the sums are added in the same order)
+        i = fc[:, ia].reshape(-1)
+        j = fc[:, ib].reshape(-1)
+        used = np.flatnonzero(np.minimum(i, j) >= 0)
+        i, j = np.take(i, used), np.take(j, used)
+        lo, hi = np.minimum(i, j), np.maximum(i, j)
+        band = int((hi - lo).max()) if used.size else 0
         self.band = band
         # upper band storage ab[band + lo - hi, hi]; off-diagonal pairs appear once per
         # (a, b) with a < b, which is the whole symmetric contribution for the upper part.
-        flat = (band + lo - hi) * self.nf + hi
         self.dump = (band + 1) * self.nf
-        self.flat = np.where(ok, flat, self.dump).ravel()
+        self.used_flat = (band + lo - hi) * self.nf + hi
+        rows, pair = np.divmod(used, ia.size)
+        self.used_a, self.used_b = rows * k + ia[pair], rows * k + ib[pair]
+        self.used_rows = rows
         self.sparse = (self.nf * band * band > SPARSE_ABOVE) if sparse is None else sparse
         if self.sparse:
             self._sparse_pattern()
@@ -110,7 +119,7 @@ class BandedLeastSquares:
         """The symmetric CSC pattern of the normal matrix, and where each of its entries
         sits in the band storage."""
         nf, band = self.nf, self.band
-        used = np.unique(self.flat[self.flat < self.dump])
+        used = np.unique(self.used_flat)
         hi = used % nf
         lo = used // nf - band + hi
         off = lo != hi
@@ -124,9 +133,10 @@ class BandedLeastSquares:
 
     def normal_band(self, vals: FloatArray, weights: FloatArray) -> FloatArray:
         """The upper band (band + 1, nf) of ``A^T W A``."""
-        prod = vals[:, self.pair_a] * vals[:, self.pair_b] * weights[:, None]
-        ab = np.bincount(self.flat, weights=prod.ravel(), minlength=self.dump + 1)
-        out: FloatArray = ab[: self.dump].reshape(self.band + 1, self.nf).astype(np.float64)
+        v = np.ravel(vals)
+        prod = np.take(v, self.used_a) * np.take(v, self.used_b) * np.take(weights, self.used_rows)
+        ab = np.bincount(self.used_flat, weights=prod, minlength=self.dump)
+        out: FloatArray = ab.reshape(self.band + 1, self.nf).astype(np.float64)
         return out
 
     def _solve_normal(self, ab: FloatArray, b: FloatArray) -> FloatArray:
@@ -151,11 +161,10 @@ class BandedLeastSquares:
     ) -> FloatArray:
         """``A^T W (c - A_fixed x_fixed)`` over the free unknowns."""
         xf = np.append(np.where(self.fixed, x_fixed, 0.0), 0.0)
-        c = const - np.sum(vals * xf[np.where(self.cols >= 0, self.cols, self.n)], axis=1)
+        c = const - np.sum(vals * xf[self.cols_or_n], axis=1)
         contrib = vals * (weights * c)[:, None]
-        ok = self.fc >= 0
-        out = np.bincount(self.fc[ok], weights=contrib[ok], minlength=self.nf).astype(np.float64)
-        return out
+        out = np.bincount(self.free_fc, weights=np.take(contrib, self.free_at), minlength=self.nf)
+        return out.astype(np.float64)
 
     def solve(
         self, vals: FloatArray, const: FloatArray, weights: FloatArray, x_fixed: FloatArray
