@@ -154,6 +154,22 @@ COVERAGE = 0.9
 SMALLER = {"cylinder-floor": "centred on the area centroid, below the middle of the view"}
 
 
+def _coverages(name: str, mask: str) -> tuple[float, float]:
+    """The lit coverage of our content warp of ``name`` with subject ``mask``, and the
+    paper-as-written warp's (as :mod:`adaproj_edge.warp.reference` places it)."""
+    s = surface(name)
+    paper = compute_warp(
+        s,
+        CONTENT,
+        subject_masks()[mask],
+        WarpSettings(mode="content", alternation="paper"),
+        REFERENCE,
+    )
+    theirs = lit_coverage(map_from_warp(paper, s), s.points, CONTENT)
+    ours = lit_coverage(warped(name, "content", mask)[1], s.points, CONTENT)
+    return ours, theirs
+
+
 @pytest.mark.parametrize("mask", ["one-left", "half"])
 @pytest.mark.parametrize(
     "name",
@@ -165,16 +181,7 @@ SMALLER = {"cylinder-floor": "centred on the area centroid, below the middle of 
     ],
 )
 def test_the_picture_covers_as_much_of_the_lit_surface_as_the_papers(name: str, mask: str) -> None:
-    s = surface(name)
-    paper = compute_warp(
-        s,
-        CONTENT,
-        subject_masks()[mask],
-        WarpSettings(mode="content", alternation="paper"),
-        REFERENCE,
-    )
-    theirs = lit_coverage(map_from_warp(paper, s), s.points, CONTENT)
-    ours = lit_coverage(warped(name, "content", mask)[1], s.points, CONTENT)
+    ours, theirs = _coverages(name, mask)
     assert ours >= COVERAGE * theirs, (ours, theirs)
 
 
@@ -192,16 +199,7 @@ def test_where_centred_lower_it_covers_as_much_as_the_paper_centred_the_same_way
         return inscribed_rectangle(*args, **{**kwargs, "near": NEAR})  # (it passes 0)
 
     monkeypatch.setattr(reference, "inscribed_rectangle", centred)
-    s = surface(name)
-    paper = compute_warp(
-        s,
-        CONTENT,
-        subject_masks()[mask],
-        WarpSettings(mode="content", alternation="paper"),
-        REFERENCE,
-    )
-    theirs = lit_coverage(map_from_warp(paper, s), s.points, CONTENT)
-    ours = lit_coverage(warped(name, "content", mask)[1], s.points, CONTENT)
+    ours, theirs = _coverages(name, mask)
     assert ours >= COVERAGE * theirs, (ours, theirs)
 
 
