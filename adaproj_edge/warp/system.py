@@ -75,7 +75,6 @@ class BandedLeastSquares:
     def __init__(
         self, cols: IntArray, n: int, fixed: NDArray[np.bool_], sparse: bool | None = None
     ) -> None:
-        self.cols = cols
         self.n = n
         self.fixed = fixed
         free_index = np.full(n + 1, -1, dtype=np.intp)  # slot n catches the -1 padding
@@ -86,14 +85,11 @@ class BandedLeastSquares:
             raise WarpError("no free unknowns in the warp system")
         self.cols_or_n = np.where(cols >= 0, cols, n)
         fc = free_index[self.cols_or_n]  # (m, k) free index or -1
-        self.fc = fc
         # the coefficients of free unknowns: their places in (m, k) order, free indices
         self.free_at = np.flatnonzero(fc >= 0)
         self.free_fc = fc.reshape(-1)[self.free_at]
         k = cols.shape[1]
         ia, ib = np.triu_indices(k)  # pairs (a, b), a <= b within a row
-        self.pair_a = ia
-        self.pair_b = ib
         # the pairs that land in the band (both free), in (row, pair) order: their
         # coefficients' places in the (m, k) values, their rows and band places (only
         # these are multiplied; the sums are added in the same order)
