@@ -93,8 +93,11 @@ class BandedLeastSquares:
         # the pairs that land in the band (both free), in (row, pair) order: their
         # coefficients' places in the (m, k) values, their rows and band places (only
         # these are multiplied; the sums are added in the same order)
-        i = fc[:, ia].reshape(-1)
-        j = fc[:, ib].reshape(-1)
+        # (in 32 bits while the pairs are many: half the memory to go through)
+        wide = (self.nf + 1) * (self.nf + 1) >= 2**31
+        fc32 = fc if wide else fc.astype(np.int32)
+        i = fc32[:, ia].reshape(-1)
+        j = fc32[:, ib].reshape(-1)
         used = np.flatnonzero(np.minimum(i, j) >= 0)
         i, j = np.take(i, used), np.take(j, used)
         gap = np.abs(i - j)
@@ -107,7 +110,7 @@ class BandedLeastSquares:
         gap -= band
         gap *= -self.nf
         gap += i
-        self.used_flat = gap
+        self.used_flat = gap.astype(np.intp)
         # (an integer division and a subtraction: several times quicker than divmod)
         rows = used // ia.size
         pair = used - rows * ia.size
