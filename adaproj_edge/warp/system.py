@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.linalg
@@ -95,11 +96,11 @@ class BandedLeastSquares:
         # these are multiplied; the sums are added in the same order)
         # (in 32 bits while the pairs are many: half the memory to go through)
         wide = (self.nf + 1) * (self.nf + 1) >= 2**31
-        fc32 = fc if wide else fc.astype(np.int32)
-        i = fc32[:, ia].reshape(-1)
-        j = fc32[:, ib].reshape(-1)
-        used = np.flatnonzero(np.minimum(i, j) >= 0)
-        i, j = np.take(i, used), np.take(j, used)
+        fc32: NDArray[np.signedinteger[Any]] = fc if wide else fc.astype(np.int32)
+        pi = fc32[:, ia].reshape(-1)
+        pj = fc32[:, ib].reshape(-1)
+        used = np.flatnonzero(np.minimum(pi, pj) >= 0)
+        i, j = np.take(pi, used), np.take(pj, used)
         gap = np.abs(i - j)
         band = int(gap.max()) if used.size else 0
         self.band = band
