@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.linalg
@@ -89,23 +90,33 @@ class BandedLeastSquares:
         self.free_at = np.flatnonzero(fc >= 0)
         self.free_fc = fc.reshape(-1)[self.free_at]
         k = cols.shape[1]
-        ia, ib = np.triu_indices(k)  # pairs (a, b), a <= b within a row
+        ia, ib = _pairs(k)  # pairs (a, b), a <= b within a row
         # the pairs that land in the band (both free), in (row, pair) order: their
         # coefficients' places in the (m, k) values, their rows and band places (only
         # these are multiplied; the sums are added in the same order)
-        i = fc[:, ia].reshape(-1)
-        j = fc[:, ib].reshape(-1)
-        used = np.flatnonzero(np.minimum(i, j) >= 0)
-        i, j = np.take(i, used), np.take(j, used)
-        lo, hi = np.minimum(i, j), np.maximum(i, j)
-        band = int((hi - lo).max()) if used.size else 0
+        # (in 32 bits while the pairs are many: half the memory to go through)
+        wide = (self.nf + 1) * (self.nf + 1) >= 2**31
+        fc32: NDArray[np.signedinteger[Any]] = fc if wide else fc.astype(np.int32)
+        pi = fc32[:, ia].reshape(-1)
+        pj = fc32[:, ib].reshape(-1)
+        used = np.flatnonzero(np.minimum(pi, pj) >= 0)
+        i, j = np.take(pi, used), np.take(pj, used)
+        gap = np.abs(i - j)
+        band = int(gap.max()) if used.size else 0
         self.band = band
         # upper band storage ab[band + lo - hi, hi]; off-diagonal pairs appear once per
         # (a, b) with a < b, which is the whole symmetric contribution for the upper part.
         self.dump = (band + 1) * self.nf
-        self.used_flat = (band + lo - hi) * self.nf + hi
-        rows, pair = np.divmod(used, ia.size)
-        self.used_a, self.used_b = rows * k + ia[pair], rows * k + ib[pair]
+        np.maximum(i, j, out=i)  # hi
+        gap -= band
+        gap *= -self.nf
+        gap += i
+        self.used_flat = gap.astype(np.intp)
+        # (an integer division and a subtraction: several times quicker than divmod)
+        rows = used // ia.size
+        pair = used - rows * ia.size
+        base = rows * k
+        self.used_a, self.used_b = base + np.take(ia, pair), base + np.take(ib, pair)
         self.used_rows = rows
         self.sparse = (self.nf * band * band > SPARSE_ABOVE) if sparse is None else sparse
         if self.sparse:
@@ -128,11 +139,12 @@ class BandedLeastSquares:
         self.csc_src = src[np.rint(csc.data).astype(np.intp) - 1]
 
     def normal_band(self, vals: FloatArray, weights: FloatArray) -> FloatArray:
-        """The upper band (band + 1, nf) of ``A^T W A``."""
+        """The upper band (band + 1, nf) of ``A^T W A`` (a fresh array)."""
         v = np.ravel(vals)
         prod = np.take(v, self.used_a) * np.take(v, self.used_b) * np.take(weights, self.used_rows)
         ab = np.bincount(self.used_flat, weights=prod, minlength=self.dump)
-        out: FloatArray = ab.reshape(self.band + 1, self.nf).astype(np.float64)
+        # (bincount's sums are float64 already: no copy)
+        out: FloatArray = np.asarray(ab, dtype=np.float64).reshape(self.band + 1, self.nf)
         return out
 
     def _solve_normal(self, ab: FloatArray, b: FloatArray) -> FloatArray:
@@ -147,10 +159,17 @@ class BandedLeastSquares:
                     options={"SymmetricMode": True},
                 )
                 return np.asarray(lu.solve(b), dtype=np.float64)
-            cb = scipy.linalg.cholesky_banded(ab, lower=False, check_finite=False)
-            return np.asarray(scipy.linalg.cho_solve_banded((cb, False), b, check_finite=False))
+            # LAPACK's dpbtrf / dpbtrs, what scipy.linalg.cholesky_banded and
+            # cho_solve_banded call, without their checks and wrapping; ``ab`` is the
+            # fresh array of normal_band, factored in place
+            cb, info = _DPBTRF(ab, lower=0, overwrite_ab=1)
+            if info == 0:
+                x, info = _DPBTRS(cb, b, lower=0)
+                if info == 0:
+                    return np.asarray(x, dtype=np.float64)
         except (np.linalg.LinAlgError, RuntimeError):
-            raise WarpError("the warp system is singular (the mesh is disconnected?)") from None
+            pass
+        raise WarpError("the warp system is singular (the mesh is disconnected?)")
 
     def rhs(
         self, vals: FloatArray, const: FloatArray, weights: FloatArray, x_fixed: FloatArray
@@ -160,7 +179,7 @@ class BandedLeastSquares:
         c = const - np.sum(vals * xf[self.cols_or_n], axis=1)
         contrib = vals * (weights * c)[:, None]
         out = np.bincount(self.free_fc, weights=np.take(contrib, self.free_at), minlength=self.nf)
-        return out.astype(np.float64)
+        return np.asarray(out, dtype=np.float64)  # (float64 already: no copy)
 
     def solve(
         self, vals: FloatArray, const: FloatArray, weights: FloatArray, x_fixed: FloatArray
@@ -175,6 +194,9 @@ class BandedLeastSquares:
             raise WarpError("the warp solve produced non-finite values")
         return x
 
+
+# LAPACK's banded Cholesky of real symmetric matrices, called directly (as below)
+_DPBTRF, _DPBTRS = scipy.linalg.lapack.get_lapack_funcs(("pbtrf", "pbtrs"), (np.zeros(1),))
 
 # LAPACK's banded Cholesky of complex Hermitian matrices, called directly: what
 # scipy.linalg.cholesky_banded and cho_solve_banded call, without their checks and

@@ -84,21 +84,37 @@ def upright(
     return mesh.remember(key, lambda: _decide(mesh, g))
 
 
+def _normals(mesh: MeshGeometry) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], FloatArray]:
+    """The triangles' unit normals (T, 3) (0 where degenerate), twice their surface
+    areas (T,), where they are sound (T,) and their pixel areas (T,): of the mesh
+    alone, kept with it (every placement decides its up again)."""
+
+    def make() -> tuple[FloatArray, FloatArray, NDArray[np.bool_], FloatArray]:
+        p = mesh.p
+        t = mesh.tris
+        n = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
+        area = np.linalg.norm(n, axis=1)
+        ok = np.isfinite(area) & (area > 0)
+        unit = np.where(ok[:, None], n / np.where(ok, area, 1.0)[:, None], 0.0)
+        return unit, area, ok, mesh.pixel_areas
+
+    return mesh.remember("upright normals", make)
+
+
 def _decide(mesh: MeshGeometry, g: FloatArray, among: NDArray[np.bool_] | None = None) -> Upright:
     """:func:`upright`, made (``g`` unit)."""
-    p = mesh.p
     t = mesh.tris
-    n = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
-    area = np.linalg.norm(n, axis=1)
-    ok = np.isfinite(area) & (area > 0)
+    unit, area, ok, pixel_areas = _normals(mesh)
     if among is not None:
-        ok &= among
-    n = np.where(ok[:, None], n / np.where(ok, area, 1.0)[:, None], 0.0)
+        ok = ok & among
+        n = np.where(ok[:, None], unit, 0.0)
+    else:
+        n = unit
     level = ok & (np.abs(n @ g) > LEVEL_COS)
     votes = None if among is None else ok
     if not level.any():
         return Upright("wall", g, votes)  # nothing level: every vote is gravity's
-    w = np.where(ok, mesh.pixel_areas, 0.0)
+    w = np.where(ok, pixel_areas, 0.0)
     if among is None:
         # the content's centre: the lit region's centre in the projector's frame; the
         # triangles nearest it hold CENTRE_SHARE of the lit pixels and decide

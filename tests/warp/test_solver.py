@@ -205,11 +205,14 @@ def test_the_paper_as_written_reference() -> None:
     assert xy[:, 1].min() <= -0.5 + 1e-6 and xy[:, 1].max() >= 199.5 - 1e-6
 
 
-def test_a_singular_complex_system_is_a_warp_error() -> None:
+def test_a_singular_system_is_a_warp_error() -> None:
     # unknown 2 appears in no row: its normal equation is 0 = 0 (LAPACK's factorisation
-    # reports it, called directly)
+    # reports it, called directly by both systems)
     cols = np.array([[0, 1], [1, -1], [0, -1]])
     vals = np.array([[1.0, -1.0], [1.0, 0.0], [1.0, 0.0]], dtype=np.complex128)
     system = ComplexLeastSquares(cols, 3, np.zeros(3, dtype=bool))
     with pytest.raises(WarpError):
         system.factor(vals, np.ones(3))
+    real = BandedLeastSquares(cols, 3, np.zeros(3, dtype=bool))
+    with pytest.raises(WarpError, match="singular"):
+        real.solve(vals.real, np.ones(3), np.ones(3), np.zeros(3))
