@@ -82,12 +82,12 @@ class DisplaySamples:
         bary = np.stack([layout.l0, layout.l1, layout.l2])
         folded = _folded(mesh)
         # the creases unfolded once: for the weights and to find the samples' sides (the
-        # mesh's own when it is the whole grid's: made from the same corners and probes)
-        unfolding = None
-        if folded.any():
-            unfolding = mesh.memo.get("grid unfolding")
-            if unfolding is None:
-                unfolding = grid_unfolding(mesh.grid_uv, depth, proj, surface)
+        # mesh's own when it is the whole grid's: made from the same corners and probes;
+        # the weights need it with or without a creased mesh triangle, and making it
+        # again was most of this build on a bumpy wall)
+        unfolding: Unfolding | None = mesh.memo.get("grid unfolding")
+        if unfolding is None and folded.any():
+            unfolding = grid_unfolding(mesh.grid_uv, depth, proj, surface)
         grid_corners, w = surface_weights(
             mesh.grid_uv, depth, proj, surface, layout.tri, bary, points, unfolding
         )
@@ -105,7 +105,7 @@ class DisplaySamples:
             [np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)]
         )
         tris = tris[shown[tris].all(axis=1)]
-        if unfolding is not None:
+        if unfolding is not None and folded.any():
             # the map has a kink at a crease: a lattice triangle across it does not count
             across = _across_crease(unfolding, layout.tri, points, tris, folded)
             tris = tris[~across]
