@@ -125,15 +125,22 @@ class DisplaySamples:
         self, content_xy: FloatArray, content_map: ContentMap
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Angle error, log size and salient weight (M,) of the lattice triangles for
-        vertex positions ``content_xy`` (n, 2); folded triangles weigh 0."""
+        vertex positions ``content_xy`` (n, 2); folded triangles weigh 0, and the
+        measures of a triangle of weight 0 are 0 (not computed)."""
         c = self.content(content_xy)
         q0, q1, q2 = c[self.tris[:, 0]], c[self.tris[:, 1]], c[self.tris[:, 2]]
         (a, c_), (b, d) = (q1 - q0).T, (q2 - q0).T  # dq = [[a, b], [c_, d]]
         det = a * d - b * c_
         good = det > 0
-        det = np.where(good, det, 1.0)
+        centroids = (q0 + q1 + q2) / 3.0
+        weight = content_map.weights(centroids).astype(np.float64) * good
+        # the Jacobians only where they count (the subject is a part of the frame): a
+        # triangle of weight 0 adds a 0 to the weighted sums either way
+        angle, log_size = np.zeros(det.size), np.zeros(det.size)
+        k = np.flatnonzero(weight)
+        a, b, c_, d, det = a[k], b[k], c_[k], d[k], det[k]
         # J = dX dq^-1; J^T J = dq^-T (dX^T dX) dq^-1, with dq^-1 = [[d, -b], [-c_, a]] / det
-        m = self.gram
+        m = self.gram[k]
         m00, m01, m11 = m[:, 0, 0], m[:, 0, 1], m[:, 1, 1]
         g00 = m00 * d * d - 2 * m01 * d * c_ + m11 * c_ * c_
         g11 = m00 * b * b - 2 * m01 * a * b + m11 * a * a
@@ -142,11 +149,9 @@ class DisplaySamples:
         disc = np.sqrt(np.maximum(0.25 * tr * tr - dg, 0.0))
         l1 = 0.5 * tr + disc
         l2 = np.maximum(0.5 * tr - disc, 1e-300)
-        angle = np.sqrt(l1 / l2) - 1.0
-        log_size = 0.25 * np.log(dg)
-        centroids = (q0 + q1 + q2) / 3.0
-        weight = content_map.weights(centroids).astype(np.float64) * good
-        return np.where(good, angle, 0.0), np.where(good, log_size, 0.0), weight
+        angle[k] = np.sqrt(l1 / l2) - 1.0
+        log_size[k] = 0.25 * np.log(dg)
+        return angle, log_size, weight
 
 
 def creased(mesh: MeshGeometry) -> NDArray[np.bool_]:
