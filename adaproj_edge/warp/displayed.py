@@ -114,10 +114,18 @@ class DisplaySamples:
 
     def content(self, content_xy: FloatArray) -> FloatArray:
         """Content positions (N, 2) of the samples for vertex positions (n, 2)."""
-        out: FloatArray = self.weights[0][:, None] * content_xy[self.corners[0]]
-        for k in range(1, self.weights.shape[0]):
-            out += self.weights[k][:, None] * content_xy[self.corners[k]]
-        return out
+        return np.stack(self._content(content_xy), axis=1)
+
+    def _content(self, content_xy: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """:meth:`content` as its x and y (N,) (a coordinate at a time: the same sums,
+        in the same order, at a quarter of the cost of gathering rows)."""
+        cx, cy = np.ascontiguousarray(content_xy[:, 0]), np.ascontiguousarray(content_xy[:, 1])
+        w, k = self.weights, self.corners
+        x, y = w[0] * cx[k[0]], w[0] * cy[k[0]]
+        for j in range(1, w.shape[0]):
+            x += w[j] * cx[k[j]]
+            y += w[j] * cy[k[j]]
+        return x, y
 
     def distortion(
         self, content_xy: FloatArray, content_map: ContentMap
@@ -125,12 +133,13 @@ class DisplaySamples:
         """Angle error, log size and salient weight (M,) of the lattice triangles for
         vertex positions ``content_xy`` (n, 2); folded triangles weigh 0, and the
         measures of a triangle of weight 0 are 0 (not computed)."""
-        c = self.content(content_xy)
-        q0, q1, q2 = c[self.tris[:, 0]], c[self.tris[:, 1]], c[self.tris[:, 2]]
-        (a, c_), (b, d) = (q1 - q0).T, (q2 - q0).T  # dq = [[a, b], [c_, d]]
+        x, y = self._content(content_xy)
+        t0, t1, t2 = self.tris[:, 0], self.tris[:, 1], self.tris[:, 2]
+        x0, x1, x2, y0, y1, y2 = x[t0], x[t1], x[t2], y[t0], y[t1], y[t2]
+        a, c_, b, d = x1 - x0, y1 - y0, x2 - x0, y2 - y0  # dq = [[a, b], [c_, d]]
         det = a * d - b * c_
         good = det > 0
-        centroids = (q0 + q1 + q2) / 3.0
+        centroids = np.stack([(x0 + x1 + x2) / 3.0, (y0 + y1 + y2) / 3.0], axis=1)
         weight = content_map.weights(centroids).astype(np.float64) * good
         # the Jacobians only where they count (the subject is a part of the frame): a
         # triangle of weight 0 adds a 0 to the weighted sums either way
