@@ -12,8 +12,8 @@ the vertices go) and scores any positions of the mesh the way the display shows 
 per small triangle of the sample lattice, the Jacobian content -> surface, its angle
 error and log size, counted where its content is salient. The guard builds it only for
 a close call (:data:`~adaproj_edge.warp.guard.SURE`) or a crease through the subject:
-about 40 ms for a 20x20 grid, 180 ms for the bumps' refined 82x56 one (one core, the
-other busy).
+about 30 ms CPU for the bumps' or the cylinder on a floor's refined grids (81x57,
+118x49).
 
 At a crease the map has a kink: a lattice triangle across it does not count. Its
 samples on either side, in the creased mesh triangle too, do: the display unfolds them
