@@ -19,10 +19,10 @@ For each grid and doubly curved surface, ``content`` mode with an off-centre sub
 Prints the median time to the result, its iterations, and the ratios reference / ours
 (target: >= 10x at 20x20 and 40x40), and the share of one cold ``compute_warp`` spent in
 the guard and the crease analysis (``guard.guard`` and the meshes'
-``creases.unfold_measured``, from a cProfile run timed by the process's CPU time;
-target: <= 25 %). Then the new surfaces (relief, waves, a curved crease) at the default
-grid, where the engine refines the mesh: their time, the grid it used, and the guard's
-choice.
+``creases.unfold_measured``, from cProfile runs timed by the process's CPU time, the
+median of ``repeat // 2`` of them; target: <= 25 %). Then the new surfaces (relief,
+waves, a curved crease) at the default grid, where the engine refines the mesh: their
+time, the grid it used, and the guard's choice.
 
 ``--real`` adds the recorded real frames (``tests/fixtures/real/``): each region's
 surface as the device path makes it from the raw depth (``tools/bench_real.py``).
@@ -246,7 +246,10 @@ def main() -> None:
                 row(name, grid, "paper ref", ref, ref_warp)
             row(name, grid, "ours cold", cold, cold_warp)
             row(name, grid, "ours cached", warm, warm_warp)
-            share = guard_crease_share(surface, ours)
+            # (the median of a few: one profiled run varies by a few points under load)
+            share = statistics.median(
+                guard_crease_share(surface, ours) for _ in range(max(1, args.repeat // 2))
+            )
             print(
                 f"{name:24s} {grid!s:>6} {'ratio':>12} {ref / cold:8.1f}x cold, "
                 f"{ref / warm:.1f}x cached; guard + creases {100 * share:.0f} % of a cold warp",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -9,7 +10,9 @@ import pytest
 
 from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.geometry.analytic import get_surface, simulate_surface
+from adaproj_edge.render import seams
 from adaproj_edge.render.maps import map_from_warp
+from adaproj_edge.warp import displayed
 from adaproj_edge.warp.displayed import STEP, DisplaySamples, creased
 from adaproj_edge.warp.engine import WarpSettings, make_warp, refine
 from adaproj_edge.warp.guard import guard, guard_grid, subject_distortion, triangle_distortion
@@ -72,6 +75,28 @@ def test_a_better_candidate_is_kept(sphere: MeshGeometry) -> None:
     choice = guard(sphere, (v, pl), (bent, place(sphere, bent, CONTENT)), cmap)
     assert choice.meta["choice"] == "content-aware" and choice.t == 1.0
     assert choice.meta["reason"] and "aware" in choice.meta and "conformal" in choice.meta
+
+
+def test_the_display_measure_takes_the_mesh_s_unfolding(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a mesh of the whole grid holds the grid's crease unfolding; the display's weights
+    # need it even where no mesh triangle is creased (a plane here, a bumpy wall in the
+    # bench), and unfolding the grid again was most of the measure's build there
+    s = simulate_surface("tilted", step=8)
+    mesh = MeshGeometry.build(s, Grid(16, 12))
+    assert "grid unfolding" in mesh.memo and not creased(mesh).any()
+    again = DisplaySamples.build(replace(mesh, memo={}), s)  # unfolds the grid itself
+
+    def unfold_again(*_: Any) -> None:
+        raise AssertionError("the grid unfolded again")
+
+    monkeypatch.setattr(seams, "grid_unfolding", unfold_again)
+    monkeypatch.setattr(displayed, "grid_unfolding", unfold_again)
+    display = DisplaySamples.build(mesh, s)
+    # the same unfolding made twice from the same corners and probes: the same weights
+    # up to rounding (1e-12 of weights of order 1)
+    assert np.array_equal(display.corners, again.corners)
+    assert np.array_equal(display.tris, again.tris)
+    np.testing.assert_allclose(display.weights, again.weights, rtol=0, atol=1e-12)
 
 
 @pytest.mark.slow
