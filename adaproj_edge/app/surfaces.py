@@ -2,7 +2,8 @@
 
 One :class:`~adaproj_edge.geometry.depth.estimate.SurfaceEstimator` (it owns its
 scratch memory), one :class:`~adaproj_edge.geometry.depth.temporal.SurfaceFilter`
-(averaging while the device is still) and the plane snapping of
+(averaging while the device is still: the raw depth averaged, then smoothed again by the
+estimator) and the plane snapping of
 :mod:`adaproj_edge.geometry.planes`.
 """
 
@@ -37,7 +38,7 @@ class SurfaceSource:
         self.settings = settings
         self.times = times
         self.estimator = SurfaceEstimator(calibration, settings.depth)
-        self.filter = SurfaceFilter()
+        self.filter = SurfaceFilter(estimator=self.estimator)
 
     def estimate(self, frame: DepthFrame) -> SurfaceEstimate:
         """The surface of one depth frame at the warp grid's lattice; raises

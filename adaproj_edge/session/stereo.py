@@ -10,9 +10,12 @@
 
 :meth:`StereoNoise.of_sensor` is what a real sensor shows
 (:class:`~adaproj_edge.geometry.depth.sensor.SensorModel`, on by default in
-``adaproj simulate-session``): its matcher's error mostly smooth and below the
-disparity step, so every wall comes out as a staircase of steps ``z^2 / (f B 2^bits)``;
-and besides:
+``adaproj simulate-session``): its matcher's random error as the model has it
+(``disparity_sigma_px``, correlated over the model's footprint, the matcher's window),
+so every wall comes out as a noisy staircase of steps ``z^2 / (f B 2^bits)`` whose
+per-pixel spread is the model's ``disparity_total_px`` (what the device's smoothing,
+plane snapping and cuts assume, and what real Kinect-class frames measure: 0.09-0.10
+px); and besides:
 
 - the band beside a silhouette the other camera cannot see (``occlusion``): with the
   right camera to the right of the reference (left) one, the background just left of
@@ -69,13 +72,15 @@ class StereoNoise:
 
     @classmethod
     def of_sensor(cls, sensor: SensorModel | SensorKind) -> StereoNoise:
-        """A real sensor's frames: its step, most of its error smooth and below the step
-        (a staircase on every wall), occlusion bands, flying pixels, untextured holes."""
+        """A real sensor's frames: its step, its matcher's random error (the model's
+        ``disparity_sigma_px``, correlated over its ``footprint_px``: a staircase on
+        every wall, dithered as much as the device's model says), occlusion bands,
+        flying pixels, untextured holes."""
         return cls(
             name=sensor.name,
-            white_px=0.02,
-            correlated_px=0.04,
-            correlation_px=12.0,
+            white_px=0.0,
+            correlated_px=sensor.disparity_sigma_px,
+            correlation_px=max(sensor.footprint_px, 1.0),
             subpixel_bits=sensor.subpixel_bits,
             occlusion=True,
             flying=0.3,

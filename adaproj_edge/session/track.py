@@ -42,8 +42,8 @@ def track_surface(
 ) -> Iterator[Tracked]:
     """Surface estimates, one per depth frame, in record order."""
     imu: deque[ImuSample] = deque()
-    filt = SurfaceFilter()
     estimator = SurfaceEstimator(calibration, settings)
+    filt = SurfaceFilter(estimator=estimator)
     for rec in records:
         if isinstance(rec, ImuSample):
             imu.append(rec)

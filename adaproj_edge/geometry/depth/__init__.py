@@ -34,7 +34,10 @@ Steps (``estimate.SurfaceEstimator``):
    its depth (grows with z^2), the viewing angle, and whether it was filled.
 
 ``temporal.SurfaceFilter`` averages estimates over time while the device is still
-(:func:`~adaproj_edge.motion.tracker.is_still` decides that from IMU samples).
+(:func:`~adaproj_edge.motion.tracker.is_still` decides that from IMU samples); given
+the estimator, it averages the raw depth of step 4 and has the estimator smooth, cut
+and fill that again (``SurfaceEstimator.re_estimate``), so that the smoothing judges a
+curved surface against the averaged noise, not one frame's.
 Grazing angles, holes and surfaces out of range lower coverage and confidence; they
 never raise. Pure: arrays in, arrays out.
 """

@@ -121,6 +121,10 @@ class SurfaceEstimator:
         # how much finer that lattice is (see SurfaceEstimate.raw)
         self.raw_depth: FloatArray | None = None
         self.raw_step = 1
+        # the newest frame's fine raw depth, support, step, jumps and lattice shape
+        self._last: tuple[FloatArray, FloatArray, int, BoolArray | None, tuple[int, int]] | None = (
+            None
+        )
 
     def rays(self, shape: tuple[int, int]) -> FloatArray:
         """Projector rays (rows, cols, 3) of the lattice ``shape`` (read-only, kept)."""
@@ -146,9 +150,39 @@ class SurfaceEstimator:
             grid), or a fine lattice for a dense surface (see
             :func:`~adaproj_edge.geometry.depth.lattice.dense_shape`).
         """
-        p = self.calibration.projector
         s, sup, filled = self.lattice_depths(depth_m, shape)
-        points = self.rays(shape) * s[..., None]
+        return self._estimate_of(s, sup, filled)
+
+    def re_estimate(self, raw_depth: FloatArray) -> SurfaceEstimate:
+        """The newest frame's estimate again, from ``raw_depth`` in the place of its
+        fine lattice's raw depth: the same rays' depths averaged over the frames the
+        device was still for (:class:`~adaproj_edge.geometry.depth.temporal.SurfaceFilter`).
+        Smoothing, cuts and fills then judge shape against the averaged noise, so the
+        longer the device is still, the less of a curved surface the smoothing takes
+        for noise.
+
+        Parameters
+        ----------
+        raw_depth : (fine rows, fine cols) float array
+            Depth along the rays of :attr:`raw_depth`'s lattice, NaN where unknown.
+
+        Raises
+        ------
+        ValueError
+            Before any frame, or when ``raw_depth`` is not that lattice's shape.
+        """
+        last = self._last
+        if last is None or np.shape(raw_depth) != last[0].shape:
+            raise ValueError("re_estimate needs the newest frame's fine lattice shape")
+        _, sup, k, jumps, shape = last
+        s = np.asarray(raw_depth, dtype=np.float64)
+        s, sup, filled = self._lattice_of(s, sup, k, jumps, shape)
+        return self._estimate_of(s, sup, filled)
+
+    def _estimate_of(self, s: FloatArray, sup: FloatArray, filled: BoolArray) -> SurfaceEstimate:
+        """The estimate of lattice depths ``s``, support ``sup`` and ``filled`` nodes."""
+        p = self.calibration.projector
+        points = self.rays(s.shape) * s[..., None]
         conf = node_confidence(
             points, np.where(filled, 0.5, sup), filled, self.calibration, self.settings
         )
@@ -187,10 +221,26 @@ class SurfaceEstimator:
         fine = ((shape[0] - 1) * k + 1, (shape[1] - 1) * k + 1)
         s, sup = intersect_images(self.rays(fine), images, cal, settings)
         s = reject_spikes(s, settings.spike_rel)
+        self._last = (s, sup, k, jumps, shape)
+        return self._lattice_of(s, sup, k, jumps, shape)
+
+    def _lattice_of(
+        self,
+        s: FloatArray,
+        sup: FloatArray,
+        k: int,
+        jumps: BoolArray | None,
+        shape: tuple[int, int],
+    ) -> tuple[FloatArray, FloatArray, BoolArray]:
+        """Steps 4 on: the fine lattice's raw depth ``s`` (support ``sup``, ``k`` times
+        finer than ``shape``; ``jumps`` the frame's depth jumps) smoothed, cut at
+        silhouettes and filled: the lattice's depths, support and filled nodes."""
+        cal, settings, work = self.calibration, self.settings, self.work
+        p = cal.projector
         raw = s[::k, ::k]
         self.raw_depth, self.raw_step = s, k
         if np.isfinite(s).any():
-            spacing = node_spacing_m(p, fine, float(np.nanmedian(s)))
+            spacing = node_spacing_m(p, (s.shape[0], s.shape[1]), float(np.nanmedian(s)))
             sigma = min(settings.smooth_m / spacing, settings.smooth_max_nodes)
             s = smooth_lattice(
                 s,

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from adaproj_edge.arrays import FloatArray
-from adaproj_edge.geometry.depth.estimate import SurfaceEstimate
+from adaproj_edge.geometry.depth.estimate import SurfaceEstimate, SurfaceEstimator
 from adaproj_edge.geometry.depth.lattice import lattice_uv
 from adaproj_edge.geometry.surface import Surface
 
@@ -19,11 +21,25 @@ class SurfaceFilter:
     before smoothing (:attr:`SurfaceEstimate.raw`) is averaged the same way, per ray of
     its finer lattice and with equal weights, so a plane fitted to it has the noise of
     the averaged frames, not of the newest one.
+
+    Given the ``estimator`` that made the estimates, the averaged raw depth (where the
+    newest frame sees) is what is smoothed, cut and filled again
+    (:meth:`~adaproj_edge.geometry.depth.estimate.SurfaceEstimator.re_estimate`),
+    rather than the smoothed lattices being averaged: the smoothing tells a curved
+    surface from noise against the averaged noise, so averaging removes its bias (a
+    column's curvature taken for noise) as well as the noise. Each estimate must be
+    passed here right after the estimator made it.
     """
 
-    def __init__(self, max_frames: int = 30, jump_rel: float = 0.03) -> None:
+    def __init__(
+        self,
+        max_frames: int = 30,
+        jump_rel: float = 0.03,
+        estimator: SurfaceEstimator | None = None,
+    ) -> None:
         self.max_frames = max_frames
         self.jump_rel = jump_rel
+        self.estimator = estimator
         self._s: FloatArray | None = None
         self._w: FloatArray | None = None
         self._c: FloatArray | None = None
@@ -107,8 +123,17 @@ class SurfaceFilter:
                 np.nan,
             )
             c = np.where(total > 0, (self._c * w_old + c_new * w_new) / total, 0.0)
-        self._s, self._w, self._c = s, total, c
         self._n = min(self._n + 1, self.max_frames)
+        raw = self._raw(est, False)
+        if self.estimator is not None and est.raw is not None and self._raw_z is not None:
+            seen = np.isfinite(est.raw[..., 2])
+            again = self.estimator.re_estimate(np.where(seen, self._raw_z, np.nan))
+            s = again.surface.points[..., 2].astype(np.float64)
+            c = again.confidence.astype(np.float64)
+            self._s, self._w, self._c = s, np.where(np.isfinite(s), total, 0.0), c
+            self.current = replace(again, frames=self._n, raw=raw)
+            return self.current
+        self._s, self._w, self._c = s, total, c
         dirs = est.surface.projector.rays(lattice_uv(est.surface.projector, s.shape))
         surface = Surface(
             (dirs * s[..., None]).astype(np.float32), est.surface.projector, dict(est.surface.meta)
@@ -119,7 +144,7 @@ class SurfaceFilter:
             c.astype(np.float32),
             filled,
             self._n,
-            raw=self._raw(est, False),
+            raw=raw,
             raw_step=est.raw_step,
         )
         return self.current
