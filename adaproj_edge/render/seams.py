@@ -57,9 +57,10 @@ BENT = 0.005
 # ... and by less than this (a corner on a crease or a silhouette has no one normal)
 BENT_MOST = 0.3
 # the sine of the turn between the surface's steps either side of a vertex above which
-# it is a kink (a crease through the vertex), not a bend (a cone turning away turns
-# 0.008 in a pixel)
-KINK = 0.03
+# it is a kink (a crease through the vertex), not a bend: a corner of 150 deg turns 0.5;
+# the wide cone rolled 90 deg, seen near grazing, turns by more than 0.03 in a pixel
+# (size 8.1e-5 at 0.1, 3.3e-4 at 0.03)
+KINK = 0.1
 
 
 def grid_neighbours(rows: int, cols: int) -> IntArray:
@@ -84,13 +85,19 @@ def grid_neighbours(rows: int, cols: int) -> IntArray:
 
 @dataclass(frozen=True)
 class _Frames:
-    """What places a surface point in each (unfolded) triangle (T of them): its
-    corner 0 ``origin`` (T, 3), the edges to corners 1 and 2 ``edges`` (T, 2, 3), the
-    corners' unit normals ``normals`` (T, 3, 3) (zero where the chord is kept) and
-    their leans ``lean`` (T, 2) (``normals[:, k] . edges[:, k - 1]``), the edges'
-    squared lengths ``sq`` (T, 2), and ``to_bary`` (T, 2, 2), ``bary_0`` (T, 2) that turn
-    differences of squared distances into barycentric weights (:func:`_project`)."""
+    """What places a surface point in each (unfolded) triangle (T of them): the (T, 2, 3)
+    matrix ``plane`` and (T, 2) ``offset`` that give the barycentric weights of corners 1
+    and 2 of its orthogonal projection onto the triangle's plane; whether the triangle
+    is ``bent`` (T,), and for those its development's: corner 0 ``origin`` (T, 3), the
+    edges to corners 1 and 2 ``edges`` (T, 2, 3), the corners' unit normals ``normals``
+    (T, 3, 3) and their leans ``lean`` (T, 2) (``normals[:, k] . edges[:, k - 1]``), the
+    edges' squared lengths ``sq`` (T, 2), and ``to_bary`` (T, 2, 2), ``bary_0`` (T, 2)
+    that turn differences of squared distances into barycentric weights
+    (:func:`_project`)."""
 
+    plane: FloatArray
+    offset: FloatArray
+    bent: BoolArray
     origin: FloatArray
     edges: FloatArray
     normals: FloatArray
@@ -109,6 +116,7 @@ def _frames(unfolding: Unfolding, vertex_normals: FloatArray | None, corners: In
     origin = pts[:, 0]
     a = np.stack([pts[:, 1] - origin, pts[:, 2] - origin], axis=1)  # (T, 2, 3)
     n = np.zeros_like(pts)
+    bent = np.zeros(len(pts), dtype=bool)
     if vertex_normals is not None:
         nv = vertex_normals[corners]  # (T, 3, 3)
         sides = np.stack([a[:, 0], a[:, 1], a[:, 1] - a[:, 0]], axis=1)
@@ -144,20 +152,42 @@ def _frames(unfolding: Unfolding, vertex_normals: FloatArray | None, corners: In
         to_bary[:, 1, 1] = 1.0 / (2 * y2 * y2)
     bary_0 = np.einsum("tij,tj->ti", to_bary, np.stack([g01, g02], axis=1))
     lean_nb = np.stack([np.sum(n[:, 1] * a[:, 0], axis=1), np.sum(n[:, 2] * a[:, 1], axis=1)], 1)
-    return _Frames(origin, a, n, lean_nb, sq, to_bary, bary_0)
+    plane, offset = _planes(unfolding)
+    return _Frames(plane, offset, bent, origin, a, n, lean_nb, sq, to_bary, bary_0)
+
+
+def _planes(unfolding: Unfolding) -> tuple[FloatArray, FloatArray]:
+    """For each (unfolded) triangle (T, 3, 3): the (T, 2, 3) matrix and (T, 2) offset that
+    give the barycentric weights (u, v) of corners 1 and 2 of a point's orthogonal
+    projection onto the triangle's plane."""
+    pts = unfolding.points
+    origin = pts[:, 0]
+    e1 = pts[:, 1] - origin
+    e2 = pts[:, 2] - origin
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g11 = np.sum(e1 * e1, axis=1)[:, None]
+        g12 = np.sum(e1 * e2, axis=1)[:, None]
+        g22 = np.sum(e2 * e2, axis=1)[:, None]
+        det = g11 * g22 - g12 * g12
+        bary = np.stack([g22 * e1 - g12 * e2, g11 * e2 - g12 * e1], axis=1) / det[:, :, None]
+    return bary, np.einsum("tij,tj->ti", bary, origin)
 
 
 def _project(t: IntArray, Xu: FloatArray, frames: _Frames) -> FloatArray:
     """Barycentric weights (..., 3) on the corners of triangles ``t`` (...) of the
-    (unfolded) surface points ``Xu`` (..., 3): from their squared distances to the
-    corners, developed where the triangle bends (:func:`_frames`), which on a plane
-    is the orthogonal projection onto the triangle's plane."""
-    y = Xu - frames.origin[t]
-    ya = np.einsum("...kj,...j->...k", frames.edges[t], y)  # (..., 2)
-    ny = np.einsum("...kj,...j->...k", frames.normals[t], y)  # (..., 3)
-    # D_0 - D_k, D_k = |y - a_k|^2 + (n_k . (y - a_k))^2 / 3
-    r = 2 * ya - frames.sq[t] + (ny[..., :1] ** 2 - (ny[..., 1:] - frames.lean[t]) ** 2) / 3
-    uv = np.einsum("...ij,...j->...i", frames.to_bary[t], r) + frames.bary_0[t]
+    (unfolded) surface points ``Xu`` (..., 3): projected onto each triangle's plane, or
+    where it is bent (:func:`_frames`) placed from their developed squared distances to
+    its corners."""
+    uv = np.einsum("...ij,...j->...i", frames.plane[t], Xu) - frames.offset[t]
+    on = frames.bent[t]
+    if np.any(on):
+        tb = t[on]
+        y = Xu[on] - frames.origin[tb]
+        ya = np.einsum("nkj,nj->nk", frames.edges[tb], y)  # (n, 2)
+        ny = np.einsum("nkj,nj->nk", frames.normals[tb], y)  # (n, 3)
+        # D_0 - D_k, D_k = |y - a_k|^2 + (n_k . (y - a_k))^2 / 3
+        r = 2 * ya - frames.sq[tb] + (ny[:, :1] ** 2 - (ny[:, 1:] - frames.lean[tb]) ** 2) / 3
+        uv[on] = np.einsum("nij,nj->ni", frames.to_bary[tb], r) + frames.bary_0[tb]
     return np.concatenate([1.0 - uv.sum(axis=-1, keepdims=True), uv], axis=-1)
 
 
