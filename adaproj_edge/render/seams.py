@@ -16,11 +16,23 @@ differ by more than a crease's angle, neither unfolded): each side is exact and 
 agree along the edge, while the neighbour's plane is the other wall's, onto which a
 pixel's point would project wrongly (a kink a band wide along the crease).
 
+Inside a triangle the plane is a chord of the surface: projected onto it, a point of
+a bent surface lands short of where the surface's development puts it (by the cell's
+turn squared: on a cone turning away, 0.1 across a cell, 1.3 % of size). So where the
+surface bends (:data:`BENT`) a pixel is placed from its distances to the triangle's
+corners as the development measures them - each chord lengthened by what the corner's
+normal says the surface bows out, ``|d|^2 + (n . d)^2 / 3`` squared (an arc of
+constant curvature, to fourth order) - in the triangle whose sides are measured the
+same way. On a plane this is the orthogonal projection, and two neighbours agree on
+their shared edge to third order rather than second.
+
 Weights are returned on six vertices per pixel: the three corners of its triangle and
 the far corner of each neighbour across its edges.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,6 +51,16 @@ BAND = 12.0  # pixels either side of an edge where the two triangles' places are
 # share up to 1. 0.4 -> 0.7: the wide cone rolled 70 deg 8.3e-4 -> 4.7e-4 in mean angle;
 # the device's 20x20 cells (smallest height 34 px) keep the 12 px band either way
 BAND_SHARE = 0.7
+# a triangle whose corners' normals lean out of its plane by more than this (the sine)
+# is placed on its development; within it the chord is exact to 1e-5 of a side
+BENT = 0.005
+# ... and by less than this (a corner on a crease or a silhouette has no one normal)
+BENT_MOST = 0.3
+# the sine of the turn between the surface's steps either side of a vertex above which
+# it is a kink (a crease through the vertex), not a bend: a corner of 150 deg turns 0.5;
+# the wide cone rolled 90 deg, seen near grazing, turns by more than 0.03 in a pixel
+# (size 8.1e-5 at 0.1, 3.3e-4 at 0.03)
+KINK = 0.1
 
 
 def grid_neighbours(rows: int, cols: int) -> IntArray:
@@ -61,7 +83,80 @@ def grid_neighbours(rows: int, cols: int) -> IntArray:
     return out.reshape(-1, 3)
 
 
-def _planes(points: FloatArray, unfolding: Unfolding) -> tuple[FloatArray, FloatArray]:
+@dataclass(frozen=True)
+class _Frames:
+    """What places a surface point in each (unfolded) triangle (T of them): the (T, 2, 3)
+    matrix ``plane`` and (T, 2) ``offset`` that give the barycentric weights of corners 1
+    and 2 of its orthogonal projection onto the triangle's plane; whether the triangle
+    is ``bent`` (T,), and for those its development's: corner 0 ``origin`` (T, 3), the
+    edges to corners 1 and 2 ``edges`` (T, 2, 3), the corners' unit normals ``normals``
+    (T, 3, 3) and their leans ``lean`` (T, 2) (``normals[:, k] . edges[:, k - 1]``), the
+    edges' squared lengths ``sq`` (T, 2), and ``to_bary`` (T, 2, 2), ``bary_0`` (T, 2)
+    that turn differences of squared distances into barycentric weights
+    (:func:`_project`)."""
+
+    plane: FloatArray
+    offset: FloatArray
+    bent: BoolArray
+    origin: FloatArray
+    edges: FloatArray
+    normals: FloatArray
+    lean: FloatArray
+    sq: FloatArray
+    to_bary: FloatArray
+    bary_0: FloatArray
+
+
+def _frames(unfolding: Unfolding, vertex_normals: FloatArray | None, corners: IntArray) -> _Frames:
+    """The :class:`_Frames` of the (unfolded) triangles: their planes, and where the
+    surface bends across one (its corners' ``vertex_normals`` (V, 3) lean out of its
+    plane by between :data:`BENT` and :data:`BENT_MOST`; none given: nowhere), its
+    development's."""
+    pts = unfolding.points
+    origin = pts[:, 0]
+    a = np.stack([pts[:, 1] - origin, pts[:, 2] - origin], axis=1)  # (T, 2, 3)
+    n = np.zeros_like(pts)
+    bent = np.zeros(len(pts), dtype=bool)
+    if vertex_normals is not None:
+        nv = vertex_normals[corners]  # (T, 3, 3)
+        sides = np.stack([a[:, 0], a[:, 1], a[:, 1] - a[:, 0]], axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lean = (
+                np.abs(np.einsum("tkj,tij->tki", nv, sides))
+                / np.linalg.norm(sides, axis=2)[:, None, :]
+            )
+            most = np.max(np.where(np.isfinite(lean), lean, np.inf), axis=(1, 2))
+            bent = ~unfolding.folded & (most > BENT) & (most < BENT_MOST)
+        n[bent] = nv[bent]
+    sq = np.sum(a * a, axis=2)  # (T, 2)
+
+    def developed(e: FloatArray, na: FloatArray, nb: FloatArray) -> FloatArray:
+        return np.asarray(
+            np.sum(e * e, axis=1) + (np.sum(na * e, axis=1) ** 2 + np.sum(nb * e, axis=1) ** 2) / 6
+        )
+
+    g01 = developed(a[:, 0], n[:, 0], n[:, 1])
+    g02 = developed(a[:, 1], n[:, 0], n[:, 2])
+    g12 = developed(a[:, 1] - a[:, 0], n[:, 1], n[:, 2])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # the developed triangle: corner 0 at 0, corner 1 at (x1, 0), corner 2 at (x2, y2);
+        # a point q with squared distances D_k to the corners has 2 c_k . q = D_0 - D_k +
+        # |c_k|^2 (k = 1, 2), and barycentric weights inv([c_1 c_2]) q
+        x1 = np.sqrt(g01)
+        x2 = (g01 + g02 - g12) / (2 * x1)
+        y2 = np.sqrt(np.maximum(g02 - x2 * x2, 0.0))
+        to_bary = np.zeros((x1.size, 2, 2))
+        to_bary[:, 0, 0] = 1.0 / (2 * x1 * x1) + x2 * x2 / (2 * x1 * x1 * y2 * y2)
+        to_bary[:, 0, 1] = -x2 / (2 * x1 * y2 * y2)
+        to_bary[:, 1, 0] = -x2 / (2 * x1 * y2 * y2)
+        to_bary[:, 1, 1] = 1.0 / (2 * y2 * y2)
+    bary_0 = np.einsum("tij,tj->ti", to_bary, np.stack([g01, g02], axis=1))
+    lean_nb = np.stack([np.sum(n[:, 1] * a[:, 0], axis=1), np.sum(n[:, 2] * a[:, 1], axis=1)], 1)
+    plane, offset = _planes(unfolding)
+    return _Frames(plane, offset, bent, origin, a, n, lean_nb, sq, to_bary, bary_0)
+
+
+def _planes(unfolding: Unfolding) -> tuple[FloatArray, FloatArray]:
     """For each (unfolded) triangle (T, 3, 3): the (T, 2, 3) matrix and (T, 2) offset that
     give the barycentric weights (u, v) of corners 1 and 2 of a point's orthogonal
     projection onto the triangle's plane."""
@@ -78,12 +173,53 @@ def _planes(points: FloatArray, unfolding: Unfolding) -> tuple[FloatArray, Float
     return bary, np.einsum("tij,tj->ti", bary, origin)
 
 
-def _project(t: IntArray, Xu: FloatArray, bary: FloatArray, offset: FloatArray) -> FloatArray:
+def _project(t: IntArray, Xu: FloatArray, frames: _Frames) -> FloatArray:
     """Barycentric weights (..., 3) on the corners of triangles ``t`` (...) of the
-    (unfolded) surface points ``Xu`` (..., 3), projected onto each triangle's plane."""
-    m = bary[t]
-    uv = np.einsum("...ij,...j->...i", m, Xu) - offset[t]
+    (unfolded) surface points ``Xu`` (..., 3): projected onto each triangle's plane, or
+    where it is bent (:func:`_frames`) placed from their developed squared distances to
+    its corners."""
+    uv = np.einsum("...ij,...j->...i", frames.plane[t], Xu) - frames.offset[t]
+    on = frames.bent[t]
+    if np.any(on):
+        tb = t[on]
+        y = Xu[on] - frames.origin[tb]
+        ya = np.einsum("nkj,nj->nk", frames.edges[tb], y)  # (n, 2)
+        ny = np.einsum("nkj,nj->nk", frames.normals[tb], y)  # (n, 3)
+        # D_0 - D_k, D_k = |y - a_k|^2 + (n_k . (y - a_k))^2 / 3
+        r = 2 * ya - frames.sq[tb] + (ny[:, :1] ** 2 - (ny[:, 1:] - frames.lean[tb]) ** 2) / 3
+        uv[on] = np.einsum("nij,nj->ni", frames.to_bary[tb], r) + frames.bary_0[tb]
     return np.concatenate([1.0 - uv.sum(axis=-1, keepdims=True), uv], axis=-1)
+
+
+def vertex_normals(surface: Surface, grid_uv: FloatArray, step: float = 1.0) -> FloatArray:
+    """Unit normals (R * C, 3) of ``surface`` at the vertices ``grid_uv`` (R, C, 2), from
+    its points ``step`` pixels either side (one side where the other has none); NaN
+    where neither has, and at a kink (a crease: the two sides turn by more than
+    :data:`KINK`), where the surface has no one normal."""
+    uv = grid_uv.reshape(-1, 2)
+    here = surface.points_at(uv).astype(np.float64)
+    kinked = np.zeros(len(uv), dtype=bool)
+
+    def tangent(axis: int) -> FloatArray:
+        d = np.zeros(2)
+        d[axis] = step
+        ahead = surface.points_at(uv + d).astype(np.float64) - here
+        behind = here - surface.points_at(uv - d).astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            turn = np.linalg.norm(np.cross(ahead, behind), axis=1) / (
+                np.linalg.norm(ahead, axis=1) * np.linalg.norm(behind, axis=1)
+            )
+        kinked[turn > KINK] = True
+        t = ahead + behind
+        t = np.where(np.isfinite(t), t, ahead)
+        out: FloatArray = np.where(np.isfinite(t), t, behind)
+        return out
+
+    n = np.cross(tangent(0), tangent(1))
+    n[kinked] = np.nan
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out: FloatArray = n / np.linalg.norm(n, axis=1, keepdims=True)
+    return out
 
 
 def _in_frame_of(
@@ -175,14 +311,13 @@ def surface_weights(
     rows, cols = grid_uv.shape[:2]
     corners = grid_triangles(rows - 1, cols - 1)
     neighbours = grid_neighbours(rows - 1, cols - 1)
-    P = (projector.rays(grid_uv) * depth[..., None]).reshape(-1, 3)
     if unfolding is None:
         unfolding = grid_unfolding(grid_uv, depth, projector, surface)
-    bary, offset = _planes(P, unfolding)
+    frames = _frames(unfolding, vertex_normals(surface, grid_uv), corners)
     X = (surface.dense().points if points is None else points).astype(np.float64)
     X_own = unfolding.unfold_points(tri, X)
     normals = triangle_normals(unfolding.points)
-    own = _project(tri, X_own, bary, offset)  # (H, W, 3)
+    own = _project(tri, X_own, frames)  # (H, W, 3)
     has_depth = np.isfinite(depth.reshape(-1))
     tri_ok = np.asarray(has_depth[corners].all(axis=1), dtype=bool)
     # the band: pixel distance to each edge, from the pixel-space barycentrics
@@ -215,7 +350,7 @@ def surface_weights(
             continue
         t_nb = nb[idx]
         w_nb = _project(
-            t_nb, _in_frame_of(tri[idx], t_nb, X[idx], X_own[idx], unfolding, normals), bary, offset
+            t_nb, _in_frame_of(tri[idx], t_nb, X[idx], X_own[idx], unfolding, normals), frames
         )  # (N, 3)
         good = np.all(np.isfinite(w_nb), axis=1)
         idx = (idx[0][good], idx[1][good])
