@@ -242,12 +242,17 @@ class PixelWeights:
         return self.checked_map(image_xy, content_size, clip)[0]
 
 
-def map_from_warp(warp: Warp, surface: Surface | None = None) -> NDArray[np.float32]:
+def map_from_warp(
+    warp: Warp, surface: Surface | None = None, weights: PixelWeights | None = None
+) -> NDArray[np.float32]:
     """The (H, W, 2) float32 map of content coordinates; NaN where the pixel shows black
     (no surface under its triangle, or outside the content). With a surface, the
     number of pixels where the fold guard fell back is recorded in
-    ``warp.meta["display_fallback_pixels"]``."""
-    weights = PixelWeights.build(warp.grid_uv, warp.depth, warp.projector, surface)
+    ``warp.meta["display_fallback_pixels"]``. ``weights``: the
+    :meth:`PixelWeights.build` of ``warp``'s grid, vertex depths, projector and
+    ``surface``, when the caller keeps them (every warp of that mesh shares them)."""
+    if weights is None:
+        weights = PixelWeights.build(warp.grid_uv, warp.depth, warp.projector, surface)
     out, fell_back = weights.checked_map(warp.image_xy, warp.content_size)
     if surface is not None:
         warp.meta["display_fallback_pixels"] = fell_back

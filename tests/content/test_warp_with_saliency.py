@@ -15,10 +15,10 @@ import skimage.data
 from adaproj_edge.content.contentmap import content_map_for
 from adaproj_edge.content.model import SaliencyModel
 from adaproj_edge.geometry.analytic import NON_DEVELOPABLE, get_surface, simulate_surface
-from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.planner import compute_warp
 from tests.distortion import in_mask, measure
+from tests.shown_maps import shown_map
 
 
 @pytest.mark.slow
@@ -36,6 +36,6 @@ def test_saliency_warp_keeps_the_subject_more_consistent(
     spread = {}
     for mode, values in (("conformal", None), ("content", cmap.values)):
         warp = compute_warp(surface, (w, h), content_map=values, settings=WarpSettings(mode=mode))
-        d = measure(map_from_warp(warp, surface), get_surface(surface_name), surface.projector.K)
+        d = measure(shown_map(warp, surface), get_surface(surface_name), surface.projector.K)
         spread[mode] = d.select(in_mask(d, subject)).size_std
     assert spread["content"] < spread["conformal"], spread

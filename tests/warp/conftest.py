@@ -9,11 +9,11 @@ from numpy.typing import NDArray
 
 from adaproj_edge.geometry.analytic import get_surface, simulate_surface
 from adaproj_edge.geometry.surface import Surface
-from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.warpmap import Warp
 from tests.distortion import Distortion, measure
+from tests.shown_maps import shown_map
 
 CONTENT = (640, 400)
 
@@ -56,7 +56,7 @@ def warped(
     cmap = None if mask is None else subject_masks()[mask]
     settings = WarpSettings(mode=mode, alternation=alternation)  # type: ignore[arg-type]
     warp = compute_warp(s, CONTENT, cmap, settings)
-    return warp, map_from_warp(warp, None if mode == "standard" else s)
+    return warp, shown_map(warp, None if mode == "standard" else s)
 
 
 @cache

@@ -31,11 +31,11 @@ from adaproj_edge.geometry.analytic import (
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.relief import Bumps, Waves
 from adaproj_edge.geometry.rotations import rodrigues
-from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.warpmap import Grid
 from tests.distortion import Distortion, in_mask, measure, surface_points, visible_fraction
+from tests.shown_maps import shown_map
 
 EXACT = 3e-4
 EXACT_FINE = 0.005
@@ -347,7 +347,7 @@ def _warp(case: Case, mode: str, alternation: str, mask: NDArray[np.float32] | N
         adaptive=case.adaptive,
     )
     warp = compute_warp(sim, case.content, mask, settings)
-    m = map_from_warp(warp, None if mode == "standard" else sim)
+    m = shown_map(warp, None if mode == "standard" else sim)
     return sim, warp, m
 
 

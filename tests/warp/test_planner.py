@@ -15,7 +15,6 @@ from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.geometry.analytic import DEVELOPABLE, NON_DEVELOPABLE, get_surface
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.render.frame import RemapMaps
-from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.warp import planner as planner_module
 from adaproj_edge.warp.coarse import coarse_cells_of, coarse_indices, upsample_field
 from adaproj_edge.warp.engine import WarpSettings
@@ -24,6 +23,7 @@ from adaproj_edge.warp.orientation import fold_count
 from adaproj_edge.warp.planner import PlanSettings, WarpPlanner, compute_warp
 from adaproj_edge.warp.warpmap import Grid, Warp
 from tests.distortion import Distortion, in_mask, measure, visible_fraction
+from tests.shown_maps import shown_map
 from tests.warp.conftest import CONTENT, subject_masks, surface
 from tests.warp.random_surfaces import draw_case, simulate_surface
 
@@ -153,7 +153,7 @@ def _pipeline_map(name: str, mask: str, factor: int) -> tuple[Warp, NDArray[np.f
     cmap = ContentMap(subject_masks()[mask], CONTENT, CONTENT_MAP_T)
     cf = planner.content_free(s, CONTENT, settings)
     warp = planner.refine(s, cmap, settings, cf)
-    return warp, map_from_warp(warp, s)
+    return warp, shown_map(warp, s)
 
 
 def _measured(name: str, m: NDArray[np.float32]) -> Distortion:
@@ -167,7 +167,7 @@ def _engine(name: str, mode: str, mask: str | None) -> Distortion:
     # on the device's grid (compute_warp would refine it where the surface bends)
     settings = WarpSettings(mode=mode, threshold=CONTENT_MAP_T, adaptive=False)
     warp = compute_warp(s, CONTENT, cmap, settings)  # type: ignore[arg-type]
-    return _measured(name, map_from_warp(warp, s))
+    return _measured(name, shown_map(warp, s))
 
 
 # the device's 10x10 refinement on the convex sphere with the subject left of the

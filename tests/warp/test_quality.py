@@ -14,13 +14,13 @@ import pytest
 
 from adaproj_edge.geometry.analytic import DEVELOPABLE, NON_DEVELOPABLE, SURFACES, get_surface
 from adaproj_edge.geometry.rectangle import NEAR, Rect, inscribed_rectangle
-from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.warp import reference
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.planner import compute_warp
 from adaproj_edge.warp.reference import REFERENCE
 from tests.curvature_bound import curvature_bound
 from tests.distortion import in_mask, lit_coverage, measure, visible_fraction
+from tests.shown_maps import shown_map
 from tests.warp.conftest import (
     CONTENT,
     LARGE_SUBJECTS,
@@ -165,7 +165,7 @@ def _coverages(name: str, mask: str) -> tuple[float, float]:
         WarpSettings(mode="content", alternation="paper"),
         REFERENCE,
     )
-    theirs = lit_coverage(map_from_warp(paper, s), s.points, CONTENT)
+    theirs = lit_coverage(shown_map(paper, s), s.points, CONTENT)
     ours = lit_coverage(warped(name, "content", mask)[1], s.points, CONTENT)
     return ours, theirs
 
@@ -272,7 +272,7 @@ def test_a_cat_photo_keeps_the_large_subject_line() -> None:
     cmap = content_map_for(image, half)
     measured = {}
     for mode, given in (("conformal", None), ("content", cmap)):
-        m = map_from_warp(compute_warp(s, (w, h), given, WarpSettings(mode=mode)), s)
+        m = shown_map(compute_warp(s, (w, h), given, WarpSettings(mode=mode)), s)
         d = measure(m, shape, s.projector.K)
         measured[mode] = (d.select(in_mask(d, half)), m)
     conf, (ours, shown) = measured["conformal"][0], measured["content"]
