@@ -4,15 +4,19 @@ eases in), quick while the device is turned on purpose (frames come every
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from adaproj_edge.app.display_loop import DisplayLoop
+from adaproj_edge.app.display_loop import DisplayLoop, Shown
 from adaproj_edge.app.settings import DisplaySettings
 from adaproj_edge.app.telemetry import Telemetry
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.hal.display import MemoryDisplay
 from adaproj_edge.hal.imu import ImuSample
+from adaproj_edge.warp.engine import standard_warp
+from adaproj_edge.warp.warpmap import Grid, Warp
 
 
 def _loop() -> DisplayLoop:
@@ -40,3 +44,32 @@ def test_the_glide_is_quick_while_the_device_is_turned() -> None:
     s = loop.settings
     assert loop._glide_tau() == pytest.approx(s.glide_moving_s, rel=0.1)
     assert s.glide_moving_s < s.glide_s
+
+
+def _placed(warp: Warp, scale: float, shift_px: float) -> Warp:
+    """``warp`` with its content shown ``scale`` times as large, ``shift_px`` right."""
+    a = warp.content_size[0] / warp.projector.width  # content pixels per projector pixel
+    centre = np.array(warp.content_size, dtype=np.float64) / 2
+    xy = (warp.image_xy - centre) / scale + centre
+    xy[..., 0] -= a * shift_px / scale
+    return replace(warp, image_xy=xy)
+
+
+@pytest.mark.parametrize(("old_frames", "glides"), [(1, True), (4, False)])
+def test_the_averaged_surface_glides_in_over_a_single_frame_one(
+    old_frames: int, glides: bool
+) -> None:
+    """When the hand stops after a move, the surface averaged over 4 depth frames
+    replaces the last single-frame one (whose holes placed the content a fifth smaller,
+    150 px away: three margins): that hand-over glides; the same change between two
+    surfaces averaged as long is shown at once (a re-aim, ``max_glide``)."""
+    loop = _loop()
+    _turn(loop, (0.0, 0.0, 0.0), 0.5)
+    p = Projector.default()
+    base = standard_warp(p, (640, 400), Grid())
+    frame = np.zeros((p.height, p.width, 3), np.uint8)
+    t = round(0.5e9)
+    loop.publish(frame, [], Shown(1, "content-free", _placed(base, 0.8, 150.0), "a", old_frames), t)
+    loop.publish(frame, [], Shown(2, "content-aware", base, "a", 4), t + round(1e9 / 15))
+    glided = not np.allclose(loop._glide, np.eye(3))
+    assert glided is glides
