@@ -20,8 +20,9 @@ class DisplaySettings:
     how long before a refresh its frame is computed (seconds), how it is resampled, the
     time constant of the glide from one rendered frame's placement to the next's held
     still and turned on purpose (and the largest glide, as a share of the margin; the
-    largest from a surface's single-frame estimate to its average after a move, as a
-    share of the frame), and the stabiliser (its ``margin`` 0: frames shown as
+    largest while the device is not turned on purpose, or from a surface's
+    single-frame estimate to its average after a move, as a share of the frame), and
+    the stabiliser (its ``margin`` 0: frames shown as
     rendered)."""
 
     refresh_hz: float = 60.0

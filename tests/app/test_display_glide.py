@@ -55,16 +55,21 @@ def _placed(warp: Warp, scale: float, shift_px: float) -> Warp:
     return replace(warp, image_xy=xy)
 
 
-@pytest.mark.parametrize(("old_frames", "glides"), [(1, True), (4, False)])
-def test_the_averaged_surface_glides_in_over_a_single_frame_one(
-    old_frames: int, glides: bool
+@pytest.mark.parametrize(
+    ("old_frames", "rate", "glides"),
+    [(1, (0.0, 0.0, 0.0), True), (4, (0.0, 0.0, 0.0), True), (4, (0.0, 0.3, 0.05), False)],
+)
+def test_a_re_placement_glides_in_unless_the_device_is_turned(
+    old_frames: int, rate: tuple[float, float, float], glides: bool
 ) -> None:
-    """When the hand stops after a move, the surface averaged over 4 depth frames
-    replaces the last single-frame one (whose holes placed the content a fifth smaller,
-    150 px away: three margins): that hand-over glides; the same change between two
-    surfaces averaged as long is shown at once (a re-aim, ``max_glide``)."""
+    """A new placement a fifth smaller and 150 px away (three margins), as the holes
+    of a single-frame surface give: when the hand stops after a move and the surface
+    averaged over 4 depth frames replaces the last single-frame one, or while the hand
+    holds still and a tremor over the motion tracker's line keeps single-frame
+    surfaces coming, it glides in; while the device is turned on purpose it is shown
+    at once (``max_glide``: the frame follows the device)."""
     loop = _loop()
-    _turn(loop, (0.0, 0.0, 0.0), 0.5)
+    _turn(loop, rate, 0.5)
     p = Projector.default()
     base = standard_warp(p, (640, 400), Grid())
     frame = np.zeros((p.height, p.width, 3), np.uint8)
