@@ -19,7 +19,16 @@ placement of a grid of content points onto the old one: a change of shape as wel
 shift) and glides to its own placement with time constant ``glide_s`` (the homography
 eased towards the identity; ``glide_moving_s`` for a frame published while the device
 is turned on purpose). A larger change (over
-``max_glide`` of the margin: a re-aim, other content) is shown at once.
+``max_glide`` of the margin: other content, a frame that follows a deliberate turn)
+is shown at once, except where it is the same surface measured again: while the
+device is not turned on purpose (the stabiliser's deliberate rate under its
+``moving_rate``), or when a frame made from a surface averaged over more depth frames
+replaces one from fewer (the hand-over after a move), it glides from as far as
+``max_handover_glide`` of the frame's size. Single-frame surfaces miss nodes where the
+depth had holes, and their placement can sit a tenth of the frame away from the
+averaged one's (or the next single frame's), a fifth smaller: shown at once, that is
+a jump of centimetres while the hand holds still (after each move; and on and on
+while a strong tremor keeps the motion tracker's "moving" on).
 
 Threads (on the device, :func:`run_display`): the display thread owns the display and
 the frame being prepared; the runtime's thread renders and publishes; the IMU reader's
@@ -80,12 +89,14 @@ log = logging.getLogger(__name__)
 @dataclass(frozen=True)
 class Shown:
     """What a published frame shows: its number, its kind ("plain", "content-free",
-    "content-aware", ...), its warp (before the margin's inset) and the content's name."""
+    "content-aware", ...), its warp (before the margin's inset), the content's name and
+    the depth frames averaged into the surface its warp was made for (0: none)."""
 
     frame_id: int
     kind: str
     warp: Warp | None
     content: str = ""
+    frames: int = 0
 
 
 @dataclass(frozen=True)
@@ -283,8 +294,15 @@ class DisplayLoop:
         A = np.asarray(found, dtype=np.float64)
         w, h = self.stabiliser.size
         corners = inner_corners((w, h), margin)
-        d = np.abs(map_points(A, corners) - corners)
-        if max(d[:, 0].max() / (margin * w), d[:, 1].max() / (margin * h)) > s.max_glide:
+        # the change is judged against the old frame's own placement, not where its
+        # glide has it now: a small change during a glide carries the glide on
+        d = np.abs(map_points(G_old @ A, corners) - corners)
+        with self._imu_lock:
+            held = self.stabiliser.deliberate_rate < s.stabiliser.moving_rate
+        if held or new.frames > old.frames > 0:  # the same surface, measured again
+            if max(d[:, 0].max() / w, d[:, 1].max() / h) > s.max_handover_glide:
+                return np.eye(3)
+        elif max(d[:, 0].max() / (margin * w), d[:, 1].max() / (margin * h)) > s.max_glide:
             return np.eye(3)
         out: FloatArray = np.asarray(np.linalg.inv(A), dtype=np.float64)
         out /= out[2, 2]

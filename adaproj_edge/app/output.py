@@ -64,16 +64,20 @@ class Output:
         self._canvas: Image | None = None
         self._kind = "plain"
         self.content = ""  # the name of the content shown (set by the runtime)
+        self.frames = 0  # depth frames averaged into the surface of the warp shown
 
     @property
     def clean_frame(self) -> Image | None:
         """The last frame rendered, without the fault marks (None before any)."""
         return self._good
 
-    def set(self, warp: Warp, maps: RemapMaps, gain: GainMap | None = None) -> None:
-        """The warp to show from now on, its maps and the brightness gain its frames
-        carry (None: frames as rendered)."""
-        self.warp, self.maps, self.gain = warp, maps, gain
+    def set(
+        self, warp: Warp, maps: RemapMaps, gain: GainMap | None = None, frames: int = 0
+    ) -> None:
+        """The warp to show from now on, its maps, the brightness gain its frames carry
+        (None: frames as rendered) and the depth frames averaged into the surface it was
+        made for (0: none, a plain warp)."""
+        self.warp, self.maps, self.gain, self.frames = warp, maps, gain, frames
 
     def render(self, image: Image, reason: str, kind: str, notify: bool = True) -> Image | None:
         """Draw ``image`` through the current maps and show it; returns the frame shown
@@ -123,6 +127,6 @@ class Output:
         self.frame = out
         self.telemetry.count("frames_shown")
         n = self.telemetry.counters["frames_shown"]
-        shown = Shown(n, self._kind, self.warp, self.content)
+        shown = Shown(n, self._kind, self.warp, self.content, self.frames)
         self.screen.publish(frame, kinds, shown, self.clock.now_ns())
         return out

@@ -561,7 +561,7 @@ class Runtime:
         self._shown_depth = surface.points[..., 2].astype(np.float64)
         self.output.content = item.name
         gain = self.warps.gain(entry, surface, frames)
-        self.output.set(warp, maps, gain)
+        self.output.set(warp, maps, gain, frames)
         self._shown_kind, self._entry = kind, entry
         frame = self.output.render(self._image(), reason, kind, notify=False)
         t_end = self.telemetry.times.now()
@@ -673,7 +673,8 @@ class Runtime:
                 self._fault("warp", f"no warp for this clip frame: {e}")
                 return
             self._stepped_down(warp, "clip")
-            self.output.set(warp, maps, self.warps.gain(self._entry, self.surface))
+            gain = self.warps.gain(self._entry, self.surface)
+            self.output.set(warp, maps, gain, self._surface_frames)
         self.output.render(step.image, "clip", kind)
         pb.shown(self._now())
 

@@ -19,8 +19,11 @@ class DisplaySettings:
     """The display loop (:mod:`adaproj_edge.app.display_loop`): refreshes per second,
     how long before a refresh its frame is computed (seconds), how it is resampled, the
     time constant of the glide from one rendered frame's placement to the next's held
-    still and turned on purpose (and the largest glide, as a share of the margin), and
-    the stabiliser (its ``margin`` 0: frames shown as rendered)."""
+    still and turned on purpose (and the largest glide, as a share of the margin; the
+    largest while the device is not turned on purpose, or from a surface's
+    single-frame estimate to its average after a move, as a share of the frame), and
+    the stabiliser (its ``margin`` 0: frames shown as
+    rendered)."""
 
     refresh_hz: float = 60.0
     lead_s: float = 0.008
@@ -28,6 +31,7 @@ class DisplaySettings:
     glide_s: float = 0.3
     glide_moving_s: float = 0.05
     max_glide: float = 2.0
+    max_handover_glide: float = 0.25
     stabiliser: StabiliserSettings = field(default_factory=StabiliserSettings)
 
 

@@ -30,7 +30,10 @@ The content is rendered ``margin`` of the frame inside each edge, so the correct
 room. When the correction uses more than ``ease_from`` of that room the follower is
 pulled towards the device (harder the closer to the edge): the picture eases back
 instead of being cut; at the edge it is held there (the content never leaves the
-frame). ``margin = 0`` turns stabilisation off (``C`` is the identity).
+frame). The pull aims at the device's orientation low-passed with ``usage_tau_s`` (and
+carried along by the deliberate rate, as the follower is): aimed at the orientation of
+the moment, it let a share of a strong tremor through. ``margin = 0`` turns
+stabilisation off (``C`` is the identity).
 
 Gyro bias
 ---------
@@ -140,6 +143,7 @@ class Stabiliser:
         self._last_step_ns: int | None = None
         self._age_s = 0.0  # since the follower started
         self._usage = 0.0
+        self._R_calm: FloatArray | None = None  # the device's orientation, tremor taken out
 
     # ------------------------------------------------------------------ input
     def add_gyro(self, t_ns: int, rate: FloatArray) -> None:
@@ -166,6 +170,7 @@ class Stabiliser:
         self._deliberate.reset()
         self._bias.reset_stillness()
         self._usage = 0.0
+        self._R_calm = None
 
     @property
     def deliberate_rate(self) -> float:
@@ -185,8 +190,8 @@ class Stabiliser:
         R = self.track.predict(t_lit_ns)
         if not s.enabled or self.track.last_ns is None:
             return Correction(np.eye(3), 0.0, 0.0)
-        if self.R_s is None or self._last_step_ns is None:
-            self.R_s, self._last_step_ns, self._age_s = R, t_lit_ns, 0.0
+        if self.R_s is None or self._last_step_ns is None or self._R_calm is None:
+            self.R_s, self._last_step_ns, self._age_s, self._R_calm = R, t_lit_ns, 0.0, R
             return Correction(np.eye(3), 0.0, s.tau_still_s)
         dt = max(0.0, (t_lit_ns - self._last_step_ns) * 1e-9)
         self._last_step_ns = t_lit_ns
@@ -195,7 +200,8 @@ class Stabiliser:
         tau = s.tau_moving_s + (s.tau_still_s - s.tau_moving_s) / (1.0 + v * v)
         # carried along by the low-passed rate (no lag behind a steady turn or a bias
         # not yet learnt), then pulled towards the device
-        self.R_s = self.R_s @ small_rotation(self._deliberate.value * dt)
+        carried = small_rotation(self._deliberate.value * dt)
+        self.R_s = self.R_s @ carried
         a = 1.0 - math.exp(-dt / tau)
         if 0.0 < self._age_s < tau:  # (two steps at one time: dt and age both 0)
             # started: a running mean of the orientations so far, not the first one
@@ -203,12 +209,15 @@ class Stabiliser:
             a = max(a, dt / self._age_s)
         self.R_s = _toward(self.R_s, R, a)
         usage = margin_usage(self.K, self.R_s.T @ R, self.size, s.margin)
-        self._usage += (usage - self._usage) * (1.0 - math.exp(-dt / s.usage_tau_s))
+        low = 1.0 - math.exp(-dt / s.usage_tau_s)
+        self._usage += (usage - self._usage) * low
+        self._R_calm = _toward(self._R_calm @ carried, R, low)
         if self._usage > s.ease_from:
             # eased back: a pull whose rate grows smoothly from 0 at ease_from to
-            # 1 / ease_tau_s at the edge, decided on the low-passed use (no tremor in it)
+            # 1 / ease_tau_s at the edge, decided on the low-passed use and aimed at
+            # the low-passed orientation (both without the tremor)
             x = min(1.0, (self._usage - s.ease_from) / (1.0 - s.ease_from))
-            self.R_s = _toward(self.R_s, R, 1.0 - math.exp(-dt * x * x / s.ease_tau_s))
+            self.R_s = _toward(self.R_s, self._R_calm, 1.0 - math.exp(-dt * x * x / s.ease_tau_s))
             usage = margin_usage(self.K, self.R_s.T @ R, self.size, s.margin)
         for _ in range(3):  # at the edge: held there (usage is nearly linear in angle)
             if usage <= 1.0:

@@ -4,15 +4,19 @@ eases in), quick while the device is turned on purpose (frames come every
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from adaproj_edge.app.display_loop import DisplayLoop
+from adaproj_edge.app.display_loop import DisplayLoop, Shown
 from adaproj_edge.app.settings import DisplaySettings
 from adaproj_edge.app.telemetry import Telemetry
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.hal.display import MemoryDisplay
 from adaproj_edge.hal.imu import ImuSample
+from adaproj_edge.warp.engine import standard_warp
+from adaproj_edge.warp.warpmap import Grid, Warp
 
 
 def _loop() -> DisplayLoop:
@@ -40,3 +44,37 @@ def test_the_glide_is_quick_while_the_device_is_turned() -> None:
     s = loop.settings
     assert loop._glide_tau() == pytest.approx(s.glide_moving_s, rel=0.1)
     assert s.glide_moving_s < s.glide_s
+
+
+def _placed(warp: Warp, scale: float, shift_px: float) -> Warp:
+    """``warp`` with its content shown ``scale`` times as large, ``shift_px`` right."""
+    a = warp.content_size[0] / warp.projector.width  # content pixels per projector pixel
+    centre = np.array(warp.content_size, dtype=np.float64) / 2
+    xy = (warp.image_xy - centre) / scale + centre
+    xy[..., 0] -= a * shift_px / scale
+    return replace(warp, image_xy=xy)
+
+
+@pytest.mark.parametrize(
+    ("old_frames", "rate", "glides"),
+    [(1, (0.0, 0.0, 0.0), True), (4, (0.0, 0.0, 0.0), True), (4, (0.0, 0.3, 0.05), False)],
+)
+def test_a_re_placement_glides_in_unless_the_device_is_turned(
+    old_frames: int, rate: tuple[float, float, float], glides: bool
+) -> None:
+    """A new placement a fifth smaller and 150 px away (three margins), as the holes
+    of a single-frame surface give: when the hand stops after a move and the surface
+    averaged over 4 depth frames replaces the last single-frame one, or while the hand
+    holds still and a tremor over the motion tracker's line keeps single-frame
+    surfaces coming, it glides in; while the device is turned on purpose it is shown
+    at once (``max_glide``: the frame follows the device)."""
+    loop = _loop()
+    _turn(loop, rate, 0.5)
+    p = Projector.default()
+    base = standard_warp(p, (640, 400), Grid())
+    frame = np.zeros((p.height, p.width, 3), np.uint8)
+    t = round(0.5e9)
+    loop.publish(frame, [], Shown(1, "content-free", _placed(base, 0.8, 150.0), "a", old_frames), t)
+    loop.publish(frame, [], Shown(2, "content-aware", base, "a", 4), t + round(1e9 / 15))
+    glided = not np.allclose(loop._glide, np.eye(3))
+    assert glided is glides

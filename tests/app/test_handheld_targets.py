@@ -4,7 +4,8 @@ deliberate moves), scored on the simulator's truth:
 
 - at a wall corner, the frame-to-frame jitter while held still is at most a fifth of
   the runtime's without stabilisation (a new rendered frame once moved the content by
-  centimetres along the corner's ridge: placement, not the display loop);
+  centimetres along the corner's ridge: placement; and the averaged surface's
+  placement replaced the last single-frame one's at once when the hand stopped);
 - held still for 12 s, the picture drifts less than 2 mm over 10 s (the follower once
   started on that instant's tremor and let it decay as a drift);
 - on a device rolled 20 degrees, the content stays within a degree of upright while
@@ -42,17 +43,25 @@ def _handheld(path: Path, stabilise: bool) -> dict[str, Any]:
     return out
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="on the OAK-D's depth (the simulator's default) the stabilised picture jitters "
-    "14.8 mm rms against 16.5 mm without stabilising (seed 32), the crease no longer slit "
-    "beside a hole (28.8 against 30.0 with the slit): not the holes, nor the slit",
+@pytest.mark.parametrize(
+    ("seconds", "seed", "tremor"),
+    [(5.0, 32, 0.15), (4.0, 0, 0.05)],
 )
-def test_jitter_at_a_wall_corner_is_a_fifth_of_today_s(tmp_path: Path) -> None:
-    path = _session(str(tmp_path), "corner", HandMotion(5.0, seed=32, tremor_deg=0.15))
-    on, off = _handheld(path, True), _handheld(path, False)
-    assert off["jitter_mm_rms"] > 2.0
-    assert on["jitter_mm_rms"] <= 0.2 * off["jitter_mm_rms"]
+def test_jitter_at_a_wall_corner_is_a_fifth_of_today_s(
+    tmp_path: Path, seconds: float, seed: int, tremor: float
+) -> None:
+    """The ratio is the summary's own: the stabilised picture's frame-to-frame motion
+    over the frames as rendered, both on the simulator's true corner in the same replay
+    (the bench's figure). When the hand stops after a move, the placement of the last
+    single-frame surface (its depth holes: nodes missing, the rectangle up to a quarter
+    smaller and a tenth of the frame away) was replaced at once by the averaged
+    surface's, one jump of about 10 cm (the ratio 0.94 on seed 0 at 0.05 degrees; seed 32 at
+    0.15, once marked as a known failure, likewise); the display loop now glides
+    across that hand-over."""
+    hand = HandMotion(seconds, seed=seed, tremor_deg=tremor)
+    on = _handheld(_session(str(tmp_path), "corner", hand), True)
+    assert on["jitter_off_mm_rms"] > 2.0
+    assert on["jitter_ratio"] <= 0.2
 
 
 def test_the_picture_drifts_under_2_mm_over_10_s_held_still(tmp_path: Path) -> None:

@@ -4,6 +4,7 @@ margin never exceeded, the gyro bias learnt."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.rotations import rotation_matrix, rotation_vector
@@ -50,16 +51,25 @@ def _tremor(t: np.ndarray, rms: float, seed: int = 0) -> np.ndarray:
     return np.sum(a * 2 * np.pi * f * np.cos(2 * np.pi * f * t[:, None, None] + ph), axis=1)
 
 
-def test_tremor_is_cancelled_on_a_still_hand() -> None:
+@pytest.mark.parametrize(
+    ("rms", "seed", "share"),
+    [(0.003, 0, 0.1), (0.0087, 2, 0.25)],
+)
+def test_tremor_is_cancelled_on_a_still_hand(rms: float, seed: int, share: float) -> None:
+    """0.17 degrees RMS: a tenth or less is left. 0.5 degrees RMS uses over half the
+    margin, and the pull back towards the device lets some through: a quarter or less
+    (the pull once aimed at the device's own orientation, tremor and all: 0.29 of it
+    on this seed, 0.22-0.29 on seeds 1-3; now towards its low-passed orientation:
+    0.24, 0.15-0.24)."""
     t = np.arange(0, 6.0, 1 / RATE_HZ)
-    rate = _tremor(t, 0.003)
+    rate = _tremor(t, rms, seed)
     times, on, _ = _run(rate, t)
     _, off, _ = _run(rate, t, StabiliserSettings(margin=0.0))
     late = times > 2.0
     motion_on = np.linalg.norm(np.diff(_angles(on)[late], axis=0), axis=1)
     motion_off = np.linalg.norm(np.diff(_angles(off)[late], axis=0), axis=1)
-    # frame-to-frame motion of where the picture points: a tenth or less
-    assert np.sqrt(np.mean(motion_on**2)) < 0.1 * np.sqrt(np.mean(motion_off**2))
+    # frame-to-frame motion of where the picture points, against the device's own
+    assert np.sqrt(np.mean(motion_on**2)) < share * np.sqrt(np.mean(motion_off**2))
 
 
 def test_without_a_margin_nothing_is_corrected() -> None:
