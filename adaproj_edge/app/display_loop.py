@@ -24,7 +24,9 @@ is shown at once, except where it is the same surface measured again: while the
 device is not turned on purpose (the stabiliser's deliberate rate under its
 ``moving_rate``), or when a frame made from a surface averaged over more depth frames
 replaces one from fewer (the hand-over after a move), it glides from as far as
-``max_handover_glide`` of the frame's size. Single-frame surfaces miss nodes where the
+``max_handover_glide`` of the frame's size (judged at the content points, not at the
+frame's corners: a re-placement on a corner is no homography, and the fit's corners can
+sit twice as far off as the content). Single-frame surfaces miss nodes where the
 depth had holes, and their placement can sit a tenth of the frame away from the
 averaged one's (or the next single frame's), a fifth smaller: shown at once, that is
 a jump of centimetres while the hand holds still (after each move; and on and on
@@ -293,17 +295,22 @@ class DisplayLoop:
             return np.eye(3)
         A = np.asarray(found, dtype=np.float64)
         w, h = self.stabiliser.size
-        corners = inner_corners((w, h), margin)
         # the change is judged against the old frame's own placement, not where its
         # glide has it now: a small change during a glide carries the glide on
-        d = np.abs(map_points(G_old @ A, corners) - corners)
+        G = G_old @ A
         with self._imu_lock:
             held = self.stabiliser.deliberate_rate < s.stabiliser.moving_rate
         if held or new.frames > old.frames > 0:  # the same surface, measured again
+            # judged where the content is: a re-placement across a corner's crease is
+            # no homography, and the fit's frame corners can sit twice as far off
+            d = np.abs(map_points(G, u_new[ok]) - u_new[ok])
             if max(d[:, 0].max() / w, d[:, 1].max() / h) > s.max_handover_glide:
                 return np.eye(3)
-        elif max(d[:, 0].max() / (margin * w), d[:, 1].max() / (margin * h)) > s.max_glide:
-            return np.eye(3)
+        else:
+            corners = inner_corners((w, h), margin)
+            d = np.abs(map_points(G, corners) - corners)
+            if max(d[:, 0].max() / (margin * w), d[:, 1].max() / (margin * h)) > s.max_glide:
+                return np.eye(3)
         out: FloatArray = np.asarray(np.linalg.inv(A), dtype=np.float64)
         out /= out[2, 2]
         return out

@@ -78,3 +78,22 @@ def test_a_re_placement_glides_in_unless_the_device_is_turned(
     loop.publish(frame, [], Shown(2, "content-aware", base, "a", 4), t + round(1e9 / 15))
     glided = not np.allclose(loop._glide, np.eye(3))
     assert glided is glides
+
+
+def test_a_re_placement_is_judged_where_the_content_is() -> None:
+    """Held still, content shown at half the frame's width re-placed at 0.3 of it (a
+    re-capture of a corner puts the content on its other wall): its points move 0.1
+    under a tenth of the frame, far under ``max_handover_glide``, so it glides in. The
+    homography's frame corners, far outside the content, move 0.3 of the frame (5/3,
+    the ratio of the two scales, times their distance from the centre): judged there it
+    was shown at once, a jump of centimetres (at a corner whose placement is no
+    homography the corners' move is over twice the content's)."""
+    loop = _loop()
+    _turn(loop, (0.0, 0.0, 0.0), 0.5)
+    p = Projector.default()
+    base = standard_warp(p, (640, 400), Grid())
+    frame = np.zeros((p.height, p.width, 3), np.uint8)
+    t = round(0.5e9)
+    loop.publish(frame, [], Shown(1, "content-aware", _placed(base, 0.5, 0.0), "a", 4), t)
+    loop.publish(frame, [], Shown(2, "content-aware", _placed(base, 0.3, 0.0), "a", 3), t + 1)
+    assert not np.allclose(loop._glide, np.eye(3))
