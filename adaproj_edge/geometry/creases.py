@@ -273,7 +273,14 @@ def unfold_measured(
         vn = acc / np.sqrt(dot_first(acc, acc))  # (3, N)
     # a vertex all of whose triangles are rough (at the mesh's outline, where a crease
     # meets it) takes the plane of the neighbour it lies nearest to
-    vn = _borrowed_planes(tris[seen_t], points, vn)
+    lost = np.asarray(~np.isfinite(vn).all(axis=0), dtype=bool)
+    vn, lender = _borrowed_planes(tris[seen_t], points, vn)
+    # ... unless it lies off that plane, on a wall whose strip at the frame's edge is
+    # narrower than the row of cells the crease runs through: its own plane, then
+    seen_b = np.asarray(seen_t, dtype=bool)
+    own = _own_planes(tris, tri_pts, probes, size, seen_b, points, vn, lost, lender)
+    vn[:, own[0]] = own[1]
+    has_flat[own[0]] = True
     # only triangles whose corners' planes differ can hold a crease (checked for all
     # rough triangles at once; the loop below then handles the few that remain)
     rough_t = np.flatnonzero(slight | sliver)
@@ -582,25 +589,122 @@ def _sample_planes(
     return na, pa, nb, pb
 
 
-def _borrowed_planes(tris: IntArray, points: FloatArray, vn: FloatArray) -> FloatArray:
+def _borrowed_planes(
+    tris: IntArray, points: FloatArray, vn: FloatArray
+) -> tuple[FloatArray, IntArray]:
     """The vertex planes' normals ``vn`` (3, N), where a vertex of ``tris`` (T, 3) has
     none (NaN), the one of its neighbours (along the triangles' sides) whose plane it
-    lies nearest to, if any has one."""
+    lies nearest to, if any has one; and that neighbour (N,), -1 where none lent."""
+    lender = np.full(vn.shape[1], -1, dtype=np.intp)
     lost = np.any(~np.isfinite(vn), axis=0)
     if not np.any(lost[tris]):
-        return vn
+        return vn, lender
     v = np.concatenate([tris[:, 0], tris[:, 1], tris[:, 2], tris[:, 1], tris[:, 2], tris[:, 0]])
     w = np.concatenate([tris[:, 1], tris[:, 2], tris[:, 0], tris[:, 0], tris[:, 1], tris[:, 2]])
     use = lost[v] & ~lost[w]
     v, w = v[use], w[use]
     if v.size == 0:
-        return vn
+        return vn, lender
     off = np.abs(np.einsum("ij,ji->i", points[v] - points[w], vn[:, w]))
     order = np.lexsort((off, v))  # by vertex, the nearest plane first
     first = np.unique(v[order], return_index=True)[1]
     out = vn.copy()
     out[:, v[order][first]] = vn[:, w[order][first]]
-    return out
+    lender[v[order][first]] = w[order][first]
+    return out, lender
+
+
+def _own_planes(
+    tris: IntArray,
+    tri_pts: FloatArray,
+    probes: FloatArray,
+    size: FloatArray,
+    seen_t: NDArray[np.bool_],
+    points: FloatArray,
+    vn: FloatArray,
+    lost: NDArray[np.bool_],
+    lender: IntArray,
+) -> tuple[IntArray, FloatArray]:
+    """The vertices (V,) that had no plane of their own (``lost`` (N,)) and lie off the
+    one their ``lender`` (N,) lent them (:func:`_borrowed_planes`; normals ``vn`` (3,
+    N)) by more than :data:`SLIGHT` of their triangles' size, with the plane (3, V
+    unit normals) that their triangles' samples (corners ``tri_pts`` (T, 3, 3) and
+    probes (3, 4, T) of ``tris`` (T, 3) seen (``seen_t``)) off the lent plane lie on,
+    within :data:`PLANAR` (:func:`_plane_fits`; where they do not, or are a line of
+    points, the vertex keeps the lent plane).
+
+    A wall whose strip at the frame's edge is narrower than the row (or column) of
+    cells the crease runs through, or a corner of the frame the crease clips, has no
+    flat triangle: each of its vertices borrowed a neighbour's plane, the other wall's,
+    so its triangles' corners agreed and the crease went unfolded (a crease oblique in
+    the frame: a band of a cell's width along it, mean angle error 7e-3 on a 60 deg
+    corner).
+    """
+    none = (np.zeros(0, dtype=np.intp), np.zeros((3, 0)))
+    at = np.flatnonzero(lost & (lender >= 0))
+    if at.size == 0:
+        return none
+    t_idx = np.flatnonzero(seen_t)
+    inc_v, inc_t = tris[t_idx].ravel(), np.repeat(t_idx, 3)
+    mine = np.zeros(points.shape[0], dtype=bool)
+    mine[at] = True
+    inc_v, inc_t = inc_v[mine[inc_v]], inc_t[mine[inc_v]]
+    order = np.argsort(inc_v, kind="stable")
+    inc_v, inc_t = inc_v[order], inc_t[order]
+    verts, start, count = np.unique(inc_v, return_index=True, return_counts=True)
+    rank = np.arange(inc_v.size) - np.repeat(start, count)
+    row = np.repeat(np.arange(verts.size), count)
+    reach = np.zeros(verts.size)
+    np.maximum.at(reach, row, size[inc_t])
+    src = lender[verts]
+    n_lent, p_lent = vn[:, src].T, points[src]  # (V, 3)
+    tol = SLIGHT * reach
+    off_self = np.abs(np.einsum("vj,vj->v", points[verts] - p_lent, n_lent))
+    by_tri = np.full((verts.size, int(count.max()), 7, 3), np.nan)
+    by_tri[row, rank] = np.concatenate(
+        [tri_pts[inc_t], probes[:, :, inc_t].transpose(2, 1, 0)], axis=1
+    )
+    samples = by_tri.reshape(verts.size, -1, 3)
+    seen = np.all(np.isfinite(samples), axis=2)
+    x = np.where(seen[:, :, None], samples, 0.0)
+    off = np.abs(np.einsum("vkj,vj->vk", x - p_lent[:, None], n_lent))
+    use = seen & (off > tol[:, None])
+    normal, centre, good = _plane_fits(x, use, PLANAR * reach)
+    # (a probe within a pixel of the crease is interpolated between the walls: one or
+    # two samples the first fit misses are left out once, where six or more stay)
+    res = np.abs(np.einsum("vkj,vj->vk", x - centre[:, None], normal))
+    near = use & (res <= 10 * PLANAR * reach[:, None])
+    left_out = use.sum(axis=1) - near.sum(axis=1)
+    again = np.flatnonzero(~good & (left_out <= 2) & (near.sum(axis=1) >= 6))
+    use_again = near[again]
+    fit_again = _plane_fits(x[again], use_again, PLANAR * reach[again])
+    normal[again], centre[again], good[again] = fit_again
+    normal *= np.where(np.einsum("vj,vj->v", normal, centre) > 0, -1.0, 1.0)[:, None]
+    good &= np.einsum("vj,vj->v", normal, n_lent) < CREASE_COS
+    off_lent = off_self > tol
+    # a vertex whose samples off the lent plane are a line of points (the strip's edge
+    # of the frame alone) takes a fitted neighbour's plane when it lies on it
+    has = good & off_lent
+    plane_n = np.where(has[:, None], normal, np.nan)
+    plane_p = np.where(has[:, None], points[verts], np.nan)
+    slot = np.full(points.shape[0], -1, dtype=np.intp)
+    slot[verts] = np.arange(verts.size)
+    a = np.concatenate([tris[:, 0], tris[:, 1], tris[:, 2], tris[:, 1], tris[:, 2], tris[:, 0]])
+    b = np.concatenate([tris[:, 1], tris[:, 2], tris[:, 0], tris[:, 0], tris[:, 1], tris[:, 2]])
+    pairs = np.unique(np.stack([slot[a], slot[b]], axis=1), axis=0)
+    pairs = pairs[(pairs >= 0).all(axis=1)]
+    for _ in range(verts.size):
+        wanting = ~has[pairs[:, 0]] & has[pairs[:, 1]] & off_lent[pairs[:, 0]]
+        i, k = pairs[wanting, 0], pairs[wanting, 1]
+        d = np.abs(np.einsum("ij,ij->i", points[verts[i]] - plane_p[k], plane_n[k]))
+        on = d <= PLANAR * reach[i]
+        i, k = i[on], k[on]
+        if i.size == 0:
+            break
+        i, first = np.unique(i, return_index=True)
+        plane_n[i], plane_p[i] = plane_n[k[first]], plane_p[k[first]]
+        has[i] = True
+    return verts[has], plane_n[has].T
 
 
 def _nothing_folded(tri_pts: FloatArray, flat: NDArray[np.bool_]) -> Unfolding:

@@ -1,6 +1,6 @@
 """Developable surfaces the built-in set lacks are exact on the displayed map too: cones
-on their own (not meeting a wall) and cylinders whose axis is neither vertical nor
-horizontal in the frame.
+on their own (not meeting a wall), cylinders whose axis is neither vertical nor
+horizontal in the frame, and wall corners seen tilted and rolled (the crease oblique).
 
 Issue 30's line for every developable surface: mean angle error and size inconsistency
 <= 5e-4 on the displayed map, measured every 4 px. Ground truth: the independent scorer
@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from adaproj_edge.geometry.analytic import ConeWall, Cylinder, simulate_surface
+from adaproj_edge.geometry.analytic import ConeWall, Corner, Cylinder, simulate_surface
 from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.planner import compute_warp
@@ -60,6 +60,20 @@ CASES = [
     pytest.param(
         turned(Cylinder("vault", cx=0.0, cz=0.45, r=1.25, concave=True), -20.0, 30.0, 15.0),
         id="vault-oblique",
+    ),
+    # a 60 deg corner tilted and rolled 90 deg: the second wall is a strip along the
+    # frame's top edge, narrower than the row of cells the crease runs through, so none
+    # of its triangles is flat; its vertices borrowed the first wall's plane and the
+    # crease went unfolded: a band a cell wide along it (mean angle 6.9e-3, size 2.4e-2)
+    pytest.param(
+        turned(Corner("c60", x0=0.1, z0=1.8, half_angle=np.deg2rad(30)), 15.0, -20.0, 90.0),
+        id="corner60-rolled",
+    ),
+    # a 90 deg corner tilted and rolled 45 deg: the crease clips the frame's top-left
+    # corner cells, the same way (1.2e-3, 5.8e-3)
+    pytest.param(
+        turned(Corner("corner", x0=0.13, z0=1.8), 15.0, -20.0, 45.0),
+        id="corner90-rolled",
     ),
 ]
 
