@@ -18,7 +18,7 @@ Modes
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Literal, Protocol
 
 import numpy as np
@@ -32,7 +32,7 @@ from adaproj_edge.warp.anderson import Anderson
 from adaproj_edge.warp.guard import guard
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.orientation import unfolded
-from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place, upright_angle
+from adaproj_edge.warp.placement import DEFAULT_UP, Placement, place
 from adaproj_edge.warp.solve import (
     ContentAwareSolver,
     ContentAwareWeights,
@@ -76,9 +76,6 @@ Mode = Literal["content", "conformal", "standard"]
 MODES: tuple[Mode, ...] = ("content", "conformal", "standard")
 Alternation = Literal["ours", "paper"]
 ALTERNATIONS: tuple[Alternation, ...] = ("ours", "paper")
-TURN_KEPT = 0.1 * np.pi / 180
-"""A turn of the mesh by the content-aware solve up to this (radians) keeps the start's
-rotation of the content; a larger one turns the content with it (:func:`refine`)."""
 FOLDS = "the warp folds over; the surface is too irregular for this grid"
 
 
@@ -216,7 +213,6 @@ def refine(
     """
     solver: StepSolver | None = None
     iterations = 0
-    v_start = v
     accel = Anderson()
     # eq. 8 at the start of every round, from the placement of that moment
     w = content_map.weights(placement.apply(v)).astype(np.float64)
@@ -249,17 +245,6 @@ def refine(
             accel.reset()  # a new salient set: a new fixed-point map
     if not placed:
         placement = place(mesh, v, content_map.content_size, settings.up, placement)
-    # the rounds keep the start's rotation, but the solve turns the mesh a little (a
-    # degree on a rolled device before a turned wall): the content is turned with it
-    c = placement.apply(v)[mesh.tris].mean(axis=1)  # the triangles the content is on
-    w_c, h_c = content_map.content_size
-    on = (c[:, 0] >= 0) & (c[:, 0] <= w_c) & (c[:, 1] >= 0) & (c[:, 1] <= h_c)
-    up = np.asarray(settings.up, dtype=np.float64)
-    turn = upright_angle(mesh, v, up, on) - upright_angle(mesh, v_start, up, on)
-    turn = float(np.angle(np.exp(1j * turn)))
-    if abs(turn) > TURN_KEPT:
-        turned = replace(placement, angle=placement.angle + turn)
-        placement = place(mesh, v, content_map.content_size, settings.up, turned)
     return v, placement, iterations, float(w.mean())
 
 
