@@ -93,8 +93,9 @@ def surfaces_agree(
       makes: an object placed in front of part of the surface, a surface turned or
       bent), and
     - their mean, a shift of the whole surface, is at most ``mean_sigmas`` of its own
-      sigma over the ``N`` nodes compared (``1 / sqrt(N)``): a wall moved 3 cm is tens
-      of those at any depth the sensor measures, with a few hundred nodes.
+      sigma over the ``N`` nodes compared (``1 / sqrt(N)``): with 441 nodes of an
+      OAK-D, a wall moved 3 cm is some 60 of those at 1.5 m and 9 at 4 m between
+      single frames (more between averaged ones).
 
     Nodes known in both must be at least ``min_overlap`` of the larger valid set (the
     holes a sensor leaves come and go with its noise: a hole at the frame's border is
