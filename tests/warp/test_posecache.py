@@ -8,8 +8,12 @@ import numpy as np
 import pytest
 
 from adaproj_edge.app.settings import AppSettings
-from adaproj_edge.arrays import Float32Array, FloatArray
+from adaproj_edge.app.telemetry import Telemetry
+from adaproj_edge.app.warps import WarpSource
+from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.depth.sensor import SensorModel
+from adaproj_edge.geometry.surface import Surface
+from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.posecache import (
     PoseCache,
     common_nodes,
@@ -127,13 +131,12 @@ def test_a_surface_turned_in_the_projector_s_frame_is_told_by_its_fitted_plane()
 
 def _wall_lattice(
     kind: str, z0: float, seed: int, shift: float = 0.0, yaw_deg: float = 30.0, box: bool = False
-) -> tuple[Float32Array, SensorModel]:
+) -> tuple[Surface, SensorModel]:
     """The runtime's lattice (frame P, walls snapped) of one depth frame the simulator
     draws from the sensor model ``kind`` (its steps, correlated noise, holes and edges)
     of a wall turned ``yaw_deg`` about the vertical, ``z0 + shift`` ahead on the depth
     camera's axis; ``box``: a box 30 cm before it, in front of part of the picture."""
     from adaproj_edge.app.surfaces import SurfaceSource
-    from adaproj_edge.app.telemetry import Telemetry
     from adaproj_edge.geometry.calibration import Calibration
     from adaproj_edge.hal.depth import DepthFrame
     from adaproj_edge.session.stereo import StereoNoise, stereo_depth
@@ -152,7 +155,7 @@ def _wall_lattice(
     mm = stereo_depth(pts, d, StereoNoise.of_sensor(sensor), np.random.default_rng(seed), pts)
     src = SurfaceSource(cal, AppSettings(), Telemetry(10).times)
     est = src.filter.update(src.estimate(DepthFrame(0, 0, 0, mm)), still=False)
-    return src.prepared(est).points, sensor
+    return src.prepared(est), sensor
 
 
 @pytest.mark.parametrize(("kind", "z0"), [("oak-d", 1.5), ("kinect", 4.0)])
@@ -165,25 +168,33 @@ def test_estimates_of_one_wall_agree_within_the_sensor_noise_and_a_changed_wall_
     1.5 degrees, or with a box in front of it, never is. The cache serves an entry when
     the depths agree (:func:`surfaces_agree`) and the fitted planes turned at most
     ``cache_turn_rad`` (:func:`surface_turn`), as the runtime checks them. At 4 m the
-    relative check (1 %) served the moved wall."""
+    relative check (1 %) served the moved wall. The runtime's cache
+    (:meth:`~adaproj_edge.app.warps.WarpSource.pose`) decides the same."""
     s = AppSettings()
     then, sensor = _wall_lattice(kind, z0, 1)
-    z_then = then[..., 2].astype(np.float64)
+    z_then = then.points[..., 2].astype(np.float64)
 
-    def served(points: Float32Array) -> bool:
-        z = points[..., 2].astype(np.float64)
+    def served(now: Surface) -> bool:
+        z = now.points[..., 2].astype(np.float64)
         agree = surfaces_agree(
             z, z_then, (1, 1), sensor, s.cache_match_sigmas, s.cache_spread_sigmas, s.cache_overlap
         )
-        return agree and surface_turn(points, z_then) <= s.cache_turn_rad
+        return agree and surface_turn(now.points, z_then) <= s.cache_turn_rad
 
     same = _wall_lattice(kind, z0, 2)[0]
     assert served(same)
-    holed = same.copy()  # the estimator left a hole at the top right border unfilled
-    r, c = holed.shape[:2]
-    holed[: r // 5, -c // 5 :] = np.nan  # 4 % of the nodes, as the corner replay's
+    points = same.points.copy()  # the estimator left a hole at the top right border unfilled
+    r, c = points.shape[:2]
+    points[: r // 5, -c // 5 :] = np.nan  # 4 % of the nodes, as the corner replay's
+    holed = Surface(points, same.projector)
     assert served(holed)
-    assert not served(_wall_lattice(kind, z0, 3, shift=0.03)[0])
+    moved = _wall_lattice(kind, z0, 3, shift=0.03)[0]
+    assert not served(moved)
     assert not served(_wall_lattice(kind, z0, 4, yaw_deg=31.5)[0])
     if z0 < 2.0:
         assert not served(_wall_lattice(kind, z0, 5, box=True)[0])
+        source = WarpSource(then.projector, s, Telemetry(100), sensor=sensor)
+        o, size, ws = np.zeros(3), (640, 400), WarpSettings(mode="content")
+        first, hit = source.pose(then, 1, 0, o, size, ws)
+        assert not hit and source.pose(holed, 1, 0, o, size, ws) == (first, True)
+        assert not source.pose(moved, 1, 0, o, size, ws)[1]
