@@ -63,9 +63,10 @@ class AppSettings:
     keep_shown_map: bool = False  # keep the float map of the frame shown (for scoring)
     history: int = 20000  # events, updates and stage times kept (oldest dropped first)
     # a cached warp serves a surface whose depth differs from its own by what the depth
-    # sensor's noise makes (posecache.surfaces_agree): a mean shift within this many of
-    # its sigma over the nodes compared, an RMS within this many of one pixel's sigma,
-    # and at least this share of the nodes known in both
+    # sensor's noise makes (posecache.surfaces_agree): a mean shift within the hand's
+    # sway (m) and this many of its sigma over the nodes compared, an RMS about it
+    # within this many of one pixel's sigma, and this share of the nodes known in both
+    cache_sway_m: float = 0.01
     cache_match_sigmas: float = 3.0
     cache_spread_sigmas: float = 1.0
     cache_overlap: float = 0.9

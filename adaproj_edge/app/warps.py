@@ -209,6 +209,7 @@ class WarpSource:
                 s.cache_match_sigmas,
                 s.cache_spread_sigmas,
                 s.cache_overlap,
+                s.cache_sway_m,
             )
 
         def fits(e: PoseEntry) -> bool:

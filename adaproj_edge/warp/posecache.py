@@ -77,6 +77,7 @@ def surfaces_agree(
     mean_sigmas: float = 3.0,
     rms_sigmas: float = 1.0,
     min_overlap: float = 0.9,
+    sway_m: float = 0.01,
 ) -> bool:
     """Whether two lattice depths (R, C) are estimates of the same surface, judged
     against the depth sensor's noise.
@@ -89,20 +90,24 @@ def surfaces_agree(
     pixel's sigma per node also covers the errors that neighbouring nodes share. Two
     estimates agree when
 
-    - the RMS of the scaled differences is at most ``rms_sigmas`` (what no noise
-      makes: an object placed in front of part of the surface, a surface turned or
-      bent), and
-    - their mean, a shift of the whole surface, is at most ``mean_sigmas`` of its own
-      sigma over the ``N`` nodes compared (``1 / sqrt(N)``): with 441 nodes of an
-      OAK-D, a wall moved 3 cm is some 60 of those at 1.5 m and 9 at 4 m between
-      single frames (more between averaged ones).
+    - the RMS of the scaled differences about their mean is at most ``rms_sigmas``
+      (what no noise makes: an object placed in front of part of the surface, a part
+      of it moved, the surface bent), and
+    - their mean, a shift of the whole surface along the rays, is at most ``sway_m``
+      (the hand's sway between two visits of a pose: 2-7 mm on a simulated 12-s
+      session before a corner) plus ``mean_sigmas`` of the mean's own sigma over the
+      ``N`` nodes compared (``sigma / sqrt(N)``): a wall moved 3 cm exceeds it
+      between single frames of an OAK-D up to 3.5 m with 100 nodes compared, 4.5 m
+      with 200 and 5 m with 441 (a Kinect-class sensor's a little further; frames
+      averaged further still).
 
     Nodes known in both must be at least ``min_overlap`` of the larger valid set (the
     holes a sensor leaves come and go with its noise: a hole at the frame's border is
     filled in one estimate and not the next, 5 % of a lattice). Lattices of different
     shapes never agree; a fine lattice is compared at about 21x21 of its nodes (as
     :func:`surfaces_match`). The lattice's depth in frame P stands for the sensor's
-    (the two centres are centimetres apart).
+    (the two centres are centimetres apart). A surface turned in frame P is told by
+    :func:`surface_turn`.
     """
     if now.shape != then.shape:
         return False
@@ -114,10 +119,12 @@ def surfaces_agree(
     if n == 0 or n < min_overlap * max(int(a.sum()), int(b.sum())):
         return False
     f_now, f_then = (max(1, f) for f in frames)
-    sigma = sensor.sigma_m(then[both]) * math.sqrt(1.0 / f_now + 1.0 / f_then)
-    r = (now[both] - then[both]) / np.maximum(sigma, 1e-9)
-    rms = math.sqrt(float(np.mean(r * r)))
-    return rms <= rms_sigmas and abs(float(np.mean(r))) * math.sqrt(n) <= mean_sigmas
+    sigma = np.maximum(sensor.sigma_m(then[both]) * math.sqrt(1.0 / f_now + 1.0 / f_then), 1e-9)
+    d = now[both] - then[both]
+    shift = float(np.mean(d))
+    spread = math.sqrt(float(np.mean(((d - shift) / sigma) ** 2)))
+    shift_sigma = math.sqrt(float(np.mean(sigma * sigma)) / n)
+    return spread <= rms_sigmas and abs(shift) <= sway_m + mean_sigmas * shift_sigma
 
 
 MIN_FIT_NODES = 12  # nodes known in both for :func:`surface_turn` to tell

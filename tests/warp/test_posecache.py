@@ -164,7 +164,8 @@ def test_estimates_of_one_wall_agree_within_the_sensor_noise_and_a_changed_wall_
 ) -> None:
     """Two frames of one wall (independent noise draws of the sensor model) are served
     each other's warp, also when a hole at the frame's border is filled in one and not
-    the other (the corner replay lost its cache hits so); the wall moved 3 cm, turned
+    the other (the corner replay lost its cache hits so), or the device swayed 5 mm
+    toward it; the wall moved 3 cm, turned
     1.5 degrees, or with a box in front of it, never is. The cache serves an entry when
     the depths agree (:func:`surfaces_agree`) and the fitted planes turned at most
     ``cache_turn_rad`` (:func:`surface_turn`), as the runtime checks them. At 4 m the
@@ -193,6 +194,7 @@ def test_estimates_of_one_wall_agree_within_the_sensor_noise_and_a_changed_wall_
     assert not served(_wall_lattice(kind, z0, 4, yaw_deg=31.5)[0])
     if z0 < 2.0:
         assert not served(_wall_lattice(kind, z0, 5, box=True)[0])
+        assert served(_wall_lattice(kind, z0, 6, shift=0.005)[0])  # the hand's sway
         source = WarpSource(then.projector, s, Telemetry(100), sensor=sensor)
         o, size, ws = np.zeros(3), (640, 400), WarpSettings(mode="content")
         first, hit = source.pose(then, 1, 0, o, size, ws)
