@@ -348,7 +348,7 @@ def run_device(
     run = DeviceRun(cal, up_p)
     telemetry = Telemetry(100)
     surfaces = SurfaceSource(cal, s, telemetry.times)
-    warps = WarpSource(cal.projector, s, telemetry)
+    warps = WarpSource(cal.projector, s, telemetry, sensor=surfaces.estimator.sensor)
     depth = DepthFrame(0, 0, 0, frame.depth_mm)
     try:
         cur = None

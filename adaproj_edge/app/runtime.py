@@ -165,7 +165,9 @@ class Runtime:
         self.upright = Upright(UprightSettings(gravity=s.gravity))
         self.gestures = Gestures(s.double_press_s, s.long_press_s, s.calibrate_hold_s)
         self.surfaces = SurfaceSource(calibration, s, t.times)
-        self.warps = WarpSource(calibration.projector, s, t, calibration.vignetting)
+        self.warps = WarpSource(
+            calibration.projector, s, t, calibration.vignetting, self.surfaces.estimator.sensor
+        )
         self.faults = Faults()
         self.state = State.BOOT
         self.plain = False
@@ -417,7 +419,8 @@ class Runtime:
         self.colour_wanted = False
         if measured is not None:
             s, t, cal = self.settings, self.telemetry, self.calibration
-            self.warps = WarpSource(cal.projector, s, t, cal.vignetting)  # no stale gains
+            sensor = self.surfaces.estimator.sensor
+            self.warps = WarpSource(cal.projector, s, t, cal.vignetting, sensor)  # no stale gains
             self.warps.measured = measured
         self._event("colour_measured", changed=measured is not None, reason=reason)
         self._set_state(State.IDLE)
@@ -449,7 +452,8 @@ class Runtime:
             self.surfaces = SurfaceSource(calibration, s, t.times)
             # the surface's colour measured before stays (its holds_on judges each surface)
             measured = self.warps.measured
-            self.warps = WarpSource(calibration.projector, s, t, calibration.vignetting)
+            sensor = self.surfaces.estimator.sensor
+            self.warps = WarpSource(calibration.projector, s, t, calibration.vignetting, sensor)
             self.warps.measured = measured
             self.surface = None
         self._event("calibrated", changed=calibration is not None, reason=reason)

@@ -62,7 +62,14 @@ class AppSettings:
     refine_iterations: int = 6  # per update; the next refinement goes on from there
     keep_shown_map: bool = False  # keep the float map of the frame shown (for scoring)
     history: int = 20000  # events, updates and stage times kept (oldest dropped first)
-    cache_match_rel: float = 0.01  # a cached warp serves surfaces this close (median depth)
+    # a cached warp serves a surface whose depth differs from its own by what the depth
+    # sensor's noise makes (posecache.surfaces_agree): a mean shift within the hand's
+    # sway (m) and this many of its sigma over the nodes compared, an RMS about it
+    # within this many of one pixel's sigma, and this share of the nodes known in both
+    cache_sway_m: float = 0.01
+    cache_match_sigmas: float = 3.0
+    cache_spread_sigmas: float = 1.0
+    cache_overlap: float = 0.9
     cache_turn_rad: float = 0.01  # and turned in frame P at most this much (fitted planes)
     orientation_bin_rad: float = 0.03
     depth_bin_m: float = 0.03

@@ -6,7 +6,9 @@ the pose cache between them.
 A pose's entry holds its content-free warp, the pixel weights of its mesh (every warp of
 that pose maps through them) and, once shown, the content-free warp's own maps. Lookups
 key on the IMU orientation, a depth signature and "up" (gravity), and every candidate
-is checked node by node against the current surface, for the same "up" (within
+is checked node by node against the current surface (within what the depth sensor's
+noise makes of one surface: :func:`~adaproj_edge.warp.posecache.surfaces_agree`), for
+the same "up" (within
 ``up_match_rad``; :mod:`adaproj_edge.warp.posecache`) and for the content's size. An
 entry of the same surface made for another "up", while the device turned at most
 ``orientation_bin_rad``, is placed upright again instead of solved anew (its solves
@@ -37,6 +39,8 @@ from adaproj_edge.app.telemetry import Telemetry
 from adaproj_edge.arrays import Float32Array, FloatArray
 from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.errors import CalibrationError
+from adaproj_edge.geometry.calibration import DepthCameraModel
+from adaproj_edge.geometry.depth.sensor import SensorModel
 from adaproj_edge.geometry.irradiance import Vignetting
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
@@ -50,7 +54,7 @@ from adaproj_edge.render.reproject import inset_warp
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import WarpCache
 from adaproj_edge.warp.planner import ContentFreeWarp, PlanSettings, WarpPlanner
-from adaproj_edge.warp.posecache import PoseCache, pose_key, surface_turn
+from adaproj_edge.warp.posecache import PoseCache, pose_key, surface_turn, surfaces_agree
 from adaproj_edge.warp.warpmap import Warp
 
 log = logging.getLogger(__name__)
@@ -113,6 +117,10 @@ class WarpSource:
         Where the stage times and cache counters go.
     vignetting : Vignetting, optional
         The projector lens's falloff (the calibration's), for the brightness gain.
+    sensor : SensorModel, optional
+        The depth sensor's noise model (the calibration's depth camera, of the kind
+        ``settings.depth.sensor``), what the pose cache judges a surface's difference
+        against; default: a nominal OAK-D's of that kind.
     """
 
     def __init__(
@@ -121,9 +129,11 @@ class WarpSource:
         settings: AppSettings,
         telemetry: Telemetry,
         vignetting: Vignetting | None = None,
+        sensor: SensorModel | None = None,
     ) -> None:
         s = self.settings = settings
         self.projector = projector
+        self.sensor = sensor or SensorModel.of(DepthCameraModel.oak_d(), s.depth.sensor)
         self.vignetting = vignetting
         self.telemetry = telemetry
         self.times = telemetry.times
@@ -184,9 +194,23 @@ class WarpSource:
         t_lookup = self.telemetry.times.now()
 
         def unturned(e: PoseEntry) -> bool:
-            # depths within a percent let the surface turn in P by a degree or two (the
+            # depths within the noise let the surface turn in P by a degree or two (the
             # device turned before a wall turned away): its warp would tip the content
             return surface_turn(surface.points, e.depth) <= s.cache_turn_rad
+
+        def same(now: FloatArray, e: PoseEntry) -> bool:
+            # the surface's difference judged against the sensor's noise at its depth,
+            # averaged over the frames each estimate holds
+            return surfaces_agree(
+                now,
+                e.depth,
+                (frames, e.frames),
+                self.sensor,
+                s.cache_match_sigmas,
+                s.cache_spread_sigmas,
+                s.cache_overlap,
+                s.cache_sway_m,
+            )
 
         def fits(e: PoseEntry) -> bool:
             # the same "up", and made for content of this size: an entry found by its
@@ -195,7 +219,7 @@ class WarpSource:
             return same_up and e.warp.content_size == content_size and unturned(e)
 
         entry = (
-            self.poses.get(key, depth, s.cache_match_rel, min_frames=min_frames, accept=fits)
+            self.poses.get(key, depth, min_frames=min_frames, accept=fits, match=same)
             if self.caching
             else None
         )
@@ -213,7 +237,7 @@ class WarpSource:
                 near = turned <= s.orientation_bin_rad and e.warp.content_size == content_size
                 return near and unturned(e)
 
-            base = self.poses.nearest(depth, s.cache_match_rel, min_frames=min_frames, accept=near)
+            base = self.poses.nearest(depth, min_frames=min_frames, accept=near, match=same)
             if base is not None:
                 with self.telemetry.times.timer("re_place"):
                     cf = self.planner.with_up(base.content_free, up)

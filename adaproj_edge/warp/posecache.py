@@ -4,12 +4,15 @@ returning to a pose is instant.
 The key combines the device orientation (from the IMU, in ``orientation_bin_rad``
 bins) with a compact signature of the surface (the median depth of a 3x3 split of
 the lattice, in ``depth_bin_m`` bins). A key match is only a candidate: before reuse
-the cached entry's surface is compared with the current one node by node
-(:func:`surfaces_match`), so two different scenes that share a key never swap
-warps. Depths that agree within a percent still let the surface turn in frame P by a
-degree or two (the device turned in front of a wall turned away from it): a warp made
-for it and shown now tips the content by as much, so the caller also compares the
-planes fitted to both (:func:`surface_turn`). The cache holds any entry with a
+the cached entry's surface is compared with the current one node by node, so two
+different scenes that share a key never swap warps. The runtime judges the difference
+against what the depth sensor's noise can make of one surface
+(:func:`surfaces_agree`: two estimates of a wall differ by the noise, one of a wall
+moved 3 cm or with a box in front of it by far more); :func:`surfaces_match` is the
+plain relative check. Depths that agree within the noise still let the surface turn in
+frame P by a degree or two (the device turned in front of a wall turned away from it):
+a warp made for it and shown now tips the content by as much, so the caller also
+compares the planes fitted to both (:func:`surface_turn`). The cache holds any entry with a
 ``depth`` lattice and a ``frames`` count (:class:`Posed`). At most ``size`` entries
 are kept (least recently used go first).
 """
@@ -25,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from adaproj_edge.arrays import Float32Array, FloatArray
+from adaproj_edge.geometry.depth.sensor import SensorModel
 
 Key = tuple[int, ...]
 
@@ -63,6 +67,64 @@ def surfaces_match(now: FloatArray, then: FloatArray, max_rel: float, min_overla
         return False
     rel = np.abs(now[both] - then[both]) / then[both]
     return bool(np.median(rel) <= max_rel)
+
+
+def surfaces_agree(
+    now: FloatArray,
+    then: FloatArray,
+    frames: tuple[int, int],
+    sensor: SensorModel,
+    mean_sigmas: float = 3.0,
+    rms_sigmas: float = 1.0,
+    min_overlap: float = 0.9,
+    sway_m: float = 0.01,
+) -> bool:
+    """Whether two lattice depths (R, C) are estimates of the same surface, judged
+    against the depth sensor's noise.
+
+    Each node's difference is taken in units of what one depth pixel's noise makes of
+    it (``sensor.sigma_m`` at the node's depth, growing with ``z^2``), averaged over the
+    ``frames`` (now, then) each estimate holds: ``sigma sqrt(1/f_now + 1/f_then)``. A
+    node is made from many pixels, so its own error is well under that (on the
+    committed sessions the same pose's estimates differ by 0.1-0.6 of it RMS); one
+    pixel's sigma per node also covers the errors that neighbouring nodes share. Two
+    estimates agree when
+
+    - the RMS of the scaled differences about their mean is at most ``rms_sigmas``
+      (what no noise makes: an object placed in front of part of the surface, a part
+      of it moved, the surface bent), and
+    - their mean, a shift of the whole surface along the rays, is at most ``sway_m``
+      (the hand's sway between two visits of a pose: 2-7 mm on a simulated 12-s
+      session before a corner) plus ``mean_sigmas`` of the mean's own sigma over the
+      ``N`` nodes compared (``sigma / sqrt(N)``): a wall moved 3 cm exceeds it
+      between single frames of an OAK-D up to 3.5 m with 100 nodes compared, 4.5 m
+      with 200 and 5 m with 441 (a Kinect-class sensor's a little further; frames
+      averaged further still).
+
+    Nodes known in both must be at least ``min_overlap`` of the larger valid set (the
+    holes a sensor leaves come and go with its noise: a hole at the frame's border is
+    filled in one estimate and not the next, 5 % of a lattice). Lattices of different
+    shapes never agree; a fine lattice is compared at about 21x21 of its nodes (as
+    :func:`surfaces_match`). The lattice's depth in frame P stands for the sensor's
+    (the two centres are centimetres apart). A surface turned in frame P is told by
+    :func:`surface_turn`.
+    """
+    if now.shape != then.shape:
+        return False
+    k = max(1, (min(now.shape) - 1) // 20)
+    now, then = now[::k, ::k], then[::k, ::k]
+    a, b = np.isfinite(now) & (now > 0), np.isfinite(then) & (then > 0)
+    both = a & b
+    n = int(both.sum())
+    if n == 0 or n < min_overlap * max(int(a.sum()), int(b.sum())):
+        return False
+    f_now, f_then = (max(1, f) for f in frames)
+    sigma = np.maximum(sensor.sigma_m(then[both]) * math.sqrt(1.0 / f_now + 1.0 / f_then), 1e-9)
+    d = now[both] - then[both]
+    shift = float(np.mean(d))
+    spread = math.sqrt(float(np.mean(((d - shift) / sigma) ** 2)))
+    shift_sigma = math.sqrt(float(np.mean(sigma * sigma)) / n)
+    return spread <= rms_sigmas and abs(shift) <= sway_m + mean_sigmas * shift_sigma
 
 
 MIN_FIT_NODES = 12  # nodes known in both for :func:`surface_turn` to tell
@@ -143,6 +205,11 @@ def pose_key(
     return o + surface_signature(depth, depth_bin_m) + u
 
 
+def _relative(max_rel: float, min_overlap: float) -> Callable[[FloatArray, Posed], bool]:
+    """The plain check of :meth:`PoseCache.get` (:func:`surfaces_match`)."""
+    return lambda depth, e: surfaces_match(depth, e.depth, max_rel, min_overlap)
+
+
 class PoseCache(Generic[E]):
     """Bounded LRU of entries by :func:`pose_key`."""
 
@@ -165,10 +232,13 @@ class PoseCache(Generic[E]):
         min_overlap: float = 0.97,
         min_frames: int = 0,
         accept: Callable[[E], bool] | None = None,
+        match: Callable[[FloatArray, E], bool] | None = None,
     ) -> E | None:
         """The entry for ``key`` if it fits the current ``depth``, else any entry that
         does (most recent first; it is filed under ``key`` from then on); counts the
-        outcome.
+        outcome. ``match(depth, entry)`` judges the fit (:func:`surfaces_agree` against
+        the sensor's noise, say); without it, :func:`surfaces_match` within ``max_rel``
+        and ``min_overlap``.
 
         The key is where to look first: a pose whose orientation or depth signature sits
         near a bin edge gets another key from one estimate to the next, and is still
@@ -177,15 +247,16 @@ class PoseCache(Generic[E]):
         depth frames, or that ``accept`` refuses (made for another "up"), are passed
         over but kept."""
         ok = accept or (lambda e: True)
+        same = match or _relative(max_rel, min_overlap)
         item = self._items.get(key)
         if item is not None and item.frames >= min_frames and ok(item):
-            if surfaces_match(depth, item.depth, max_rel, min_overlap):
+            if same(depth, item):
                 self._items.move_to_end(key)
                 self.hits += 1
                 return item
             self.rejected += 1
             del self._items[key]
-        found = self._find(depth, max_rel, min_overlap, min_frames, ok)
+        found = self._find(depth, same, min_frames, ok)
         if found is not None:
             other, cand = found
             del self._items[other]
@@ -203,29 +274,27 @@ class PoseCache(Generic[E]):
         min_overlap: float = 0.97,
         min_frames: int = 0,
         accept: Callable[[E], bool] | None = None,
+        match: Callable[[FloatArray, E], bool] | None = None,
     ) -> E | None:
-        """The most recent entry that fits ``depth`` (and ``accept``), whatever its key;
-        neither counted nor moved (what a new entry of the same surface is made from)."""
-        found = self._find(depth, max_rel, min_overlap, min_frames, accept or (lambda e: True))
+        """The most recent entry that fits ``depth`` (and ``accept``; ``match`` as in
+        :meth:`get`), whatever its key; neither counted nor moved (what a new entry of
+        the same surface is made from)."""
+        same = match or _relative(max_rel, min_overlap)
+        found = self._find(depth, same, min_frames, accept or (lambda e: True))
         return None if found is None else found[1]
 
     def _find(
         self,
         depth: FloatArray,
-        max_rel: float,
-        min_overlap: float,
+        same: Callable[[FloatArray, E], bool],
         min_frames: int,
         ok: Callable[[E], bool],
     ) -> tuple[Key, E] | None:
         """The most recent entry (and its key) made from at least ``min_frames`` frames
-        that ``ok`` accepts and whose surface matches ``depth``."""
+        that ``ok`` accepts and whose surface ``same`` finds to fit ``depth``."""
         for key in reversed(list(self._items)):
             item = self._items[key]
-            if (
-                item.frames >= min_frames
-                and ok(item)
-                and surfaces_match(depth, item.depth, max_rel, min_overlap)
-            ):
+            if item.frames >= min_frames and ok(item) and same(depth, item):
                 return key, item
         return None
 
