@@ -17,7 +17,7 @@ pixels between consecutive depth frames.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -151,6 +151,7 @@ def _down_on_surface(
 HELD_ALONG = math.sin(math.radians(45.0))  # down this much in a held plane: it votes held
 MIN_UNDER = 8  # triangles under the content that decide its up (fewer: the whole mesh's)
 SAME_ANGLE = math.radians(1.0)  # a rotation this close to the first is kept (no second search)
+TURN_KEPT = math.radians(0.1)  # a turn of the mesh under the content this small is not followed
 
 
 def _rectangle(
@@ -245,3 +246,35 @@ def place(
     uv = carry_through_triangles(vr[corners], mesh.uv[corners], centre[None, :])[0]
     known = uv if np.all(np.isfinite(uv)) else None
     return Placement(angle, scale, offset, centre, known, keep is not None)
+
+
+def turned_with_mesh(
+    mesh: MeshGeometry,
+    origin: FloatArray,
+    v: FloatArray,
+    placement: Placement,
+    content_size: tuple[int, int],
+    up: FloatArray | tuple[float, float, float] = DEFAULT_UP,
+) -> Placement:
+    """The placement to show positions ``v`` (n, 2) with: ``placement`` (whose rotation
+    was made upright for the positions ``origin`` (n, 2) and kept since) turned by as
+    much as the mesh under the content turned from ``origin`` to ``v``, less
+    :data:`TURN_KEPT` (a dead band: the result is continuous in ``v``), and the
+    content placed again at that rotation.
+
+    The content-aware alternation keeps its start's rotation of the content while its
+    solves turn the mesh under it (a degree on a rolled device before a turned wall).
+    Its own iterates, and a warm start from them, keep that rotation: the turn is only
+    shown, so a warm-started sequence settles as it would without it.
+    """
+    c = placement.apply(v)[mesh.tris].mean(axis=1)  # the triangles the content is on
+    w, h = content_size
+    on = (c[:, 0] >= -0.5) & (c[:, 0] <= w - 0.5) & (c[:, 1] >= -0.5) & (c[:, 1] <= h - 0.5)
+    among = on if int(on.sum()) >= MIN_UNDER else None
+    up_p = np.asarray(up, dtype=np.float64)
+    turn = upright_angle(mesh, v, up_p, among) - upright_angle(mesh, origin, up_p, among)
+    turn = float(np.angle(np.exp(1j * turn)))
+    if abs(turn) <= TURN_KEPT:
+        return placement
+    turned = replace(placement, angle=placement.angle + turn - math.copysign(TURN_KEPT, turn))
+    return place(mesh, v, content_size, up_p, turned)

@@ -101,7 +101,7 @@ from adaproj_edge.warp.fallback import (
 from adaproj_edge.warp.guard import guard, guard_grid
 from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
 from adaproj_edge.warp.orientation import fold_count
-from adaproj_edge.warp.placement import Placement, place
+from adaproj_edge.warp.placement import Placement, place, turned_with_mesh
 from adaproj_edge.warp.posecache import surfaces_match
 from adaproj_edge.warp.temporal import GradedContentMap, TemporalWarpSettings, WarpSmoother
 from adaproj_edge.warp.warpmap import Grid, Warp
@@ -237,6 +237,7 @@ class _Solution:
     start: ContentFreeWarp  # made for the surface of ``depth``
     depth: FloatArray
     factor: int  # on the grid this many times coarser than the warp grid
+    origin: FloatArray  # the positions ``placement``'s rotation was made upright for
 
 
 def _surface_depth(surface: Surface) -> FloatArray:
@@ -574,6 +575,8 @@ class WarpPlanner:
         fine_cols = fine.grid_uv.shape[1]
         to_fine = (c_rows[:, None] * fine_cols + c_cols[None, :]).ravel()
         v, placement, warm = self._start(mesh, start, to_fine, depth, content_map, settings, factor)
+        # the positions the placement's rotation is upright for: a warm start's chain's
+        origin = self._last.origin if warm and self._last is not None else v
         v_conf = self._on_mesh(start.v_conformal, start, to_fine, mesh.verts)
         extra: dict[str, Any] = {}
         if warm:
@@ -608,6 +611,7 @@ class WarpPlanner:
             else:
                 v, placement, its, frac, guarded = ours
                 extra.update(guarded)
+                origin = v_conf
         else:
             v, placement, its, frac = refine(
                 mesh, v, placement, content_map, coarse_settings, self.backend, on_step
@@ -623,10 +627,16 @@ class WarpPlanner:
                     flatten=True,
                 )
                 v, placement, extra["guard"] = choice.v, choice.placement, choice.meta
+                if str(choice.meta.get("choice", "")).startswith("conformal"):
+                    origin = v_conf  # placed upright for it
         if self.plan_settings.warm_start:
-            self._last = _Solution(v, placement, mesh.verts.copy(), start, depth, factor)
+            self._last = _Solution(v, placement, mesh.verts.copy(), start, depth, factor, origin)
+        shown = placement  # the alternation's own placement: what a warm start goes on from
+        if settings.alternation == "ours":
+            size = fine.content_size
+            shown = turned_with_mesh(mesh, origin, v, placement, size, settings.up)
         coarse_xy = np.full((to_fine.size, 2), np.nan)
-        coarse_xy[mesh.verts] = placement.apply(v)
+        coarse_xy[mesh.verts] = shown.apply(v)
         rows, cols = fine.grid_uv.shape[:2]
         if factor <= 1:
             image_xy = coarse_xy.reshape(rows, cols, 2)
@@ -693,6 +703,7 @@ class WarpPlanner:
                 )
                 if ours is not None:
                     v, placement, its, frac, guarded = ours
+                    placement = turned_with_mesh(mesh, v_conf, v, placement, content_size, full.up)
                     warp = make_warp(mesh, v, placement, surface, content_size, full, its, frac)
                     warp.meta.update(extra, **guarded)
                     warp.meta["chain"] = chain("content-aware")

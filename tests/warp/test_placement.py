@@ -1,5 +1,5 @@
 """The upright angle of a placement, against a triangle-by-triangle computation; a
-placement carried over to scaled positions."""
+placement carried over to scaled positions; the placement shown turned with the mesh."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from adaproj_edge.geometry.analytic import simulate_surface
 from adaproj_edge.warp.mesh import MeshGeometry
-from adaproj_edge.warp.placement import place, upright_angle
+from adaproj_edge.warp.placement import TURN_KEPT, place, turned_with_mesh, upright_angle
 from adaproj_edge.warp.solve import solve_conformal
 from adaproj_edge.warp.warpmap import Grid
 
@@ -113,3 +113,30 @@ def test_the_content_is_upright_where_it_lands_not_on_average() -> None:
     assert np.cos(placed.angle - want) > np.cos(np.radians(1.0))
     whole = upright_angle(mesh, v, up)
     assert np.cos(placed.angle - whole) < np.cos(np.radians(5.0))
+
+
+def test_the_content_shown_turns_with_the_mesh_under_it() -> None:
+    """The content-aware alternation keeps its start's rotation while its solves turn the
+    mesh (a degree on a rolled device before a turned wall): the placement shown turns
+    with the mesh, less the dead band. A flat wall facing the projector, its flattening
+    turned as a whole: down on every triangle turns by exactly that much (checked
+    triangle by triangle, independently of ``upright_angle``), so the content shown
+    stands off upright by the dead band alone (to 1e-9 rad: only the rectangle moves);
+    within the band the placement is kept as it is."""
+    mesh = MeshGeometry.build(simulate_surface("plane", step=8), Grid(8, 6))
+    origin = mesh.p[:, :2]  # the wall faces the projector: its x, y are the frame's
+    size, up = (400, 300), np.array([0.0, -1.0, 0.0])
+    start = place(mesh, origin, size, up)
+    for turn_deg in (1.0, -2.5):
+        turn = np.radians(turn_deg)
+        rot = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+        v = origin @ rot.T
+        shown = turned_with_mesh(mesh, origin, v, start, size, up)
+        want = _by_triangle(mesh, v, up)
+        off = float(np.angle(np.exp(1j * (shown.angle - want))))
+        assert abs(off) == pytest.approx(TURN_KEPT, abs=1e-9)
+        content = shown.apply(v)  # placed again: the mesh spans the content's width
+        assert content[:, 0].min() <= -0.5 and content[:, 0].max() >= size[0] - 0.5
+    small = np.radians(0.05)
+    v = origin @ np.array([[np.cos(small), -np.sin(small)], [np.sin(small), np.cos(small)]]).T
+    assert turned_with_mesh(mesh, origin, v, start, size, up) is start
