@@ -57,7 +57,7 @@ from numpy.typing import NDArray
 
 from adaproj_edge.arrays import FloatArray, IntArray
 from adaproj_edge.geometry.planes import plane_equations
-from adaproj_edge.geometry.ruled_crease import ruled_planes
+from adaproj_edge.geometry.ruled_crease import pixel_spans, ruled_planes
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import corners_first, dot_first, planes_first
 from adaproj_edge.geometry.wall_crease import wall_planes
@@ -172,6 +172,7 @@ def unfold_creases(
         xs.transpose(2, 1, 0),
         ruled_triangles(surface, points, tris),
         snapped_walls(surface),
+        pixel_spans(tri_uv, tri_pts),
     )
 
 
@@ -224,6 +225,7 @@ def unfold_measured(
     probes: FloatArray,
     may_rule: NDArray[np.bool_] | None = None,
     walls: FloatArray | None = None,
+    pixel: FloatArray | None = None,
 ) -> Unfolding:
     """:func:`unfold_creases` of triangles whose corners ``tri_pts`` (T, 3, 3), unit
     normals (3, T) and twice the areas (T,) (:func:`~adaproj_edge.geometry.triangles.
@@ -232,7 +234,10 @@ def unfold_measured(
     curved sides, :mod:`~adaproj_edge.geometry.ruled_crease`; None: everywhere).
     ``walls`` (k, 4): the planes sensed depth was snapped to (:func:`snapped_walls`); a
     candidate across the line where two of them meet takes their planes
-    (:mod:`~adaproj_edge.geometry.wall_crease`), without a search for its sides."""
+    (:mod:`~adaproj_edge.geometry.wall_crease`), without a search for its sides.
+    ``pixel`` (T,): the most a pixel spans on each triangle
+    (:func:`~adaproj_edge.geometry.ruled_crease.pixel_spans`): a probe that near a
+    straight crease between curved sides is sampled across it (None: none is)."""
     size = np.sqrt(area2)
     # the probes' distances (4, T) to their triangle's plane
     signed = (
@@ -395,6 +400,7 @@ def unfold_measured(
             lone,
             RULED_FIT,
             ~unexplained[retry],
+            pixel,
         )
         straight[curved] = True
         ruled[curved] = True

@@ -29,6 +29,9 @@ from adaproj_edge.arrays import FloatArray, IntArray
 NEWTON_STEPS = 8
 REACH = 2.0  # the crease must lie within this many triangle sizes of the triangle
 MIN_BENT_POINTS = 9  # a bent side is fitted from at least this many points
+# a probe this many pixels or less from the crease is sampled across it (the point map
+# is interpolated between pixels on either side, on neither patch): not held to them
+ACROSS_PIXELS = 2.0
 OUTLIERS = 0.2  # ... of which at most this share may be left out
 FIT_ROUNDS = 4  # fits, each leaving out the points farthest off the one before
 # a crease's candidates are tried until this many (plus two per one found) failed: a
@@ -267,6 +270,29 @@ def crease_planes(
     return na, at, nb, at.copy()
 
 
+def _from_line(
+    points: FloatArray, planes: tuple[FloatArray, FloatArray, FloatArray, FloatArray]
+) -> FloatArray:
+    """Distances (K,) of ``points`` (K, 3) from the line where ``planes`` (na, pa, nb,
+    pb; pa on both) meet."""
+    line = np.cross(planes[0], planes[2])
+    line /= np.linalg.norm(line)
+    rel = points - planes[1]
+    out: FloatArray = np.linalg.norm(rel - np.outer(rel @ line, line), axis=1)
+    return out
+
+
+def pixel_spans(tri_uv: FloatArray, tri_pts: FloatArray) -> FloatArray:
+    """The most (T,) a pixel spans on the surface along an edge of each triangle, with
+    pixel corners ``tri_uv`` (T, 3, 2) and surface corners ``tri_pts`` (T, 3, 3)."""
+    d_uv = tri_uv - np.roll(tri_uv, 1, axis=1)
+    d_pts = tri_pts - np.roll(tri_pts, 1, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        span = np.linalg.norm(d_pts, axis=2) / np.linalg.norm(d_uv, axis=2)
+    out: FloatArray = np.max(np.where(np.isfinite(span), span, 0.0), axis=1)
+    return out
+
+
 def _unique(ids: IntArray) -> IntArray:
     """``np.unique`` of a few tens of indices (its calls cost more than the sort)."""
     out = np.sort(ids)
@@ -289,6 +315,7 @@ def ruled_planes(
     lone: IntArray,
     fit: float,
     bent: NDArray[np.bool_],
+    pixel: FloatArray | None = None,
 ) -> IntArray:
     """Of the crease candidates ``retry`` (indices into ``cand``, the triangles of
     ``tris``; ``lone`` / ``pair_a`` their corner groups, as in
@@ -306,7 +333,10 @@ def ruled_planes(
     ``retry``): the candidate is taken only where a side's patch is bent (its corners'
     planes explain it already, but a side is curved). The candidates are tried in order
     until :data:`MISSES` of them (plus two per one found) were not such a crease, those
-    with ``bent`` until :data:`BENT_MISSES` of them (plus two per one found)."""
+    with ``bent`` until :data:`BENT_MISSES` of them (plus two per one found).
+    ``pixel`` (T,): the most a pixel spans on each triangle (metres,
+    :func:`pixel_spans`); a probe within :data:`ACROSS_PIXELS` of them from the crease
+    is not held to the patches (None: every probe is)."""
     na, pa, nb, pb = planes
     # each vertex's triangles of each kind (those of vertex v: table[starts[v]:starts[v + 1]])
     tables = []
@@ -383,6 +413,12 @@ def ruled_planes(
         probe = probes[:, :, t].T
         probe = probe[np.isfinite(probe).all(axis=1)]
         resid = np.minimum(np.abs(ca.residual(probe)), np.abs(cb.residual(probe)))
+        if met is not None and pixel is not None:
+            # (cells long along the crease put a probe beside it: a cone wall rolled
+            # 75 deg, 64 x 8 px cells, the centroid half a pixel past it 3 tolerances
+            # off the wall and 4 off the cone: its triangle was left a chord across
+            # the crease, a band two cells long where the display blends with it)
+            resid = np.where(_from_line(probe, met) <= ACROSS_PIXELS * pixel[t], 0.0, resid)
         # each corner goes with the patch it lies on (one a hair across the crease is
         # left out of its side's fit, and grouped by its plane with the wrong side);
         # with all on one patch the crease misses the triangle

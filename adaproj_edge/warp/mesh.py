@@ -17,6 +17,7 @@ from adaproj_edge.errors import WarpError
 from adaproj_edge.geometry.creases import ruled_triangles, snapped_walls, unfold_measured
 from adaproj_edge.geometry.developed import developed_lengths
 from adaproj_edge.geometry.planes import on_planes, plane_equations
+from adaproj_edge.geometry.ruled_crease import pixel_spans
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import (
     grid_triangles,
@@ -352,6 +353,7 @@ class MeshGeometry:
             probes[:, :, rows],
             None if rule is None else rule[rows],
             snapped_walls(surface),
+            pixel_spans(uv[topo.cand], pts[topo.cand]),
         )
         mine, mine_n = corners[:, :, rows], normals[:, rows]
         folded = np.flatnonzero(unfolding.folded)

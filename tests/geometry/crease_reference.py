@@ -29,7 +29,7 @@ from adaproj_edge.geometry.creases import (
     SLIGHT,
     SOFTNESS,
 )
-from adaproj_edge.geometry.ruled_crease import REACH, crease_planes, side_patch
+from adaproj_edge.geometry.ruled_crease import ACROSS_PIXELS, REACH, crease_planes, side_patch
 
 # a side's surface points near a crease triangle: (side's corners (k,), its planes'
 # normal, the other side's, wide: every smooth triangle within reach) -> (K, 3)
@@ -78,6 +78,7 @@ def decide(
     curved_side: bool = False,
     near_kink: bool = True,
     planar_corners: list[bool] | None = None,
+    pixel: float | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]] | None:
     """Triangle ``t``'s crease, from its corners' planes' normals (3, 3), its corners (3, 3),
     its probes' surface points (4, 3) and their distances to its chord plane (4,): the
@@ -86,7 +87,9 @@ def decide(
     a straight crease with a curved side); ``curved_side``: a corner of the triangle
     has no flat triangles (its side is curved: the sides' patches are tried first);
     ``near_kink``: a triangle at its corners has a kink (the patches are tried only
-    there)."""
+    there); ``pixel``: the most a pixel spans on the triangle (metres; a probe within
+    ``ACROSS_PIXELS`` of them from a straight crease between curved sides was sampled
+    across it)."""
     groups = crease_groups(corner_normals)
     if groups is None:
         return None
@@ -119,7 +122,7 @@ def decide(
     if cloud is not None and near_kink and sharp and (curved_side or unexplained):
         # a straight crease with a curved side: the sides' patches meet along it (where
         # the corners' planes explain the triangle, a side's patch must be bent)
-        found = _ruled(probe, corner_points, size, cloud, groups, (na, nb), not unexplained)
+        found = _ruled(probe, corner_points, size, cloud, groups, (na, nb), not unexplained, pixel)
         if found is not None:
             return found
     if not explained:
@@ -175,6 +178,7 @@ def _ruled(
     groups: tuple[list[int], list[int]],
     normals: tuple[FloatArray, FloatArray],
     bent: bool,
+    pixel: float | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]] | None:
     """The ruled crease of :func:`decide`: its planes from the sides' patches, None
     where they do not explain the triangle (or, with ``bent``, are both planes)."""
@@ -194,8 +198,18 @@ def _ruled(
         if bent and not (np.any(patch_a.coef[3:] != 0) or np.any(patch_b.coef[3:] != 0)):
             return None
         met = crease_planes(patch_a, patch_b, origin, d, size, tol)
+        if met is None:
+            continue
         off = np.minimum(np.abs(patch_a.height(probe)[0]), np.abs(patch_b.height(probe)[0]))
-        if met is None or float(off.max()) > tol:
+        if pixel is not None:
+            # a probe within ACROSS_PIXELS pixels of the crease (the line both tangent
+            # planes hold) is the point map interpolated across it: not held to a patch
+            line = np.cross(met[0], met[2])
+            line /= np.linalg.norm(line)
+            rel = probe - met[1]
+            beside = np.linalg.norm(np.cross(rel, line), axis=1) <= ACROSS_PIXELS * pixel
+            off = np.where(beside, 0.0, off)
+        if float(off.max()) > tol:
             continue
         # each corner goes with the patch it lies on (as its plane groups it where it
         # lies on both); the crease must run between them
@@ -215,11 +229,24 @@ def _ruled(
 
 
 def unfold_reference(
-    tris: np.ndarray, points: FloatArray, probes: FloatArray
+    tris: np.ndarray, points: FloatArray, probes: FloatArray, tri_uv: FloatArray | None = None
 ) -> dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, list[int]]]:
     """Every triangle's crease decision, triangle by triangle: ``tris`` (T, 3) vertex
     indices into ``points`` (N, 3), ``probes`` (T, 4, 3) the surface at each triangle's
-    edge midpoints and centroid. Keys: the unfolded triangles."""
+    edge midpoints and centroid, ``tri_uv`` (T, 3, 2) its pixel corners (None: no probe
+    is taken for one sampled across a crease). Keys: the unfolded triangles."""
+
+    def pixel_of(t: int) -> float | None:
+        """The most a pixel spans along an edge of triangle ``t`` (metres)."""
+        if tri_uv is None:
+            return None
+        spans = [
+            float(np.linalg.norm(points[tris[t][k]] - points[tris[t][k - 1]]))
+            / float(np.linalg.norm(tri_uv[t][k] - tri_uv[t][k - 1]))
+            for k in range(3)
+        ]
+        return max((s for s in spans if np.isfinite(s)), default=0.0)
+
     normals: dict[int, FloatArray] = {}
     sizes: dict[int, float] = {}
     dists: dict[int, FloatArray] = {}
@@ -367,6 +394,7 @@ def unfold_reference(
             curved_side,
             near_kink,
             [bool(has_planar[v]) for v in tris[t]],
+            pixel_of(t),
         )
         if found is not None:
             out[t] = found

@@ -64,7 +64,7 @@ def unfold_both(
     points = surface.points_at(uv).astype(np.float64)
     probes = surface.points_at(crease_probes(tri_uv)).astype(np.float64)
     got = unfold_creases(surface, tri_uv, tris, points, probes)
-    return got, unfold_reference(tris, points, probes), points
+    return got, unfold_reference(tris, points, probes, tri_uv), points
 
 
 def assert_same_planes(got: Unfolding, want: Reference, atol: float) -> None:
@@ -84,7 +84,7 @@ def assert_same_planes(got: Unfolding, want: Reference, atol: float) -> None:
 def test_all_at_once_agrees_with_triangle_by_triangle(name: str, cells: int, noise: float) -> None:
     surface, tri_uv, tris, points, probes = grid_mesh(name, cells, noise)
     got = unfold_creases(surface, tri_uv, tris, points, probes)
-    want = unfold_reference(tris, points, probes)
+    want = unfold_reference(tris, points, probes, tri_uv)
     assert_same_planes(got, want, atol=1e-12)
     for t, (*_, group_b) in want.items():
         side_a = [k for k in range(3) if k not in group_b]
