@@ -77,7 +77,12 @@ from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import carry_through_triangles, grid_triangles
 from adaproj_edge.warp.adaptive import adaptive_mesh
-from adaproj_edge.warp.coarse import coarse_cells_of, coarse_indices, upsample_field
+from adaproj_edge.warp.coarse import (
+    coarse_cells_of,
+    coarse_indices,
+    filled_by_shapes,
+    upsample_field,
+)
 from adaproj_edge.warp.engine import (
     FAST,
     Backend,
@@ -754,8 +759,12 @@ class WarpPlanner:
         factor: int,
     ) -> tuple[FloatArray, Placement, bool]:
         """Where the alternation starts: the last solution (warm, made on the grid of
-        the same ``factor``), the content-free positions at the coarse vertices, or
-        (where those miss) a fresh solve."""
+        the same ``factor``), the content-free positions at the coarse vertices (those
+        the fine mesh misses - at a hole's edge on sensed depth - placed by the coarse
+        triangles' shapes around them, :func:`~adaproj_edge.warp.coarse.filled_by_shapes`:
+        a fresh solve's placement cost as much as the rest of a first refinement and
+        put the content elsewhere than the content-free warp shows it), or, where no
+        triangle reaches them, a fresh solve."""
         last = self._last
         if (
             self.plan_settings.warm_start
@@ -766,8 +775,9 @@ class WarpPlanner:
         ):
             return last.v, last.placement, True  # near the answer already
         v0 = self._on_mesh(start.v, start, to_fine, mesh.verts)
-        if np.isfinite(v0).all():
-            return v0, start.placement, False
+        filled = filled_by_shapes(v0, mesh.tris, mesh.coords)
+        if filled is not None:  # in the content-free warp's placement: no new one
+            return filled, start.placement, False
         v, _ = self.backend.content_free(mesh, self.backend.conformal(mesh), settings.lam)
         return v, place(mesh, v, content_map.content_size, settings.up), False
 

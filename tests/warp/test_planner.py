@@ -4,6 +4,7 @@ fields; and compute_warp as the planner's one-shot path."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import cache
 
 import cv2
@@ -16,7 +17,12 @@ from adaproj_edge.geometry.analytic import DEVELOPABLE, NON_DEVELOPABLE, get_sur
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.render.frame import RemapMaps
 from adaproj_edge.warp import planner as planner_module
-from adaproj_edge.warp.coarse import coarse_cells_of, coarse_indices, upsample_field
+from adaproj_edge.warp.coarse import (
+    coarse_cells_of,
+    coarse_indices,
+    filled_by_shapes,
+    upsample_field,
+)
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.orientation import fold_count
@@ -100,6 +106,65 @@ def test_the_coarse_mesh_finds_the_ruled_creases_next_to_the_fine_meshs(
     nowhere = np.zeros(2 * hinted.grid.rows * hinted.grid.cols, dtype=bool)
     blind = MeshGeometry.build(sim, hinted.grid, None, hinted.grid_uv, nowhere)
     assert not blind.ruled.any()
+
+
+def test_vertices_missing_from_a_mesh_are_filled_where_its_triangles_shapes_put_them() -> None:
+    # a developable surface: the conformal solve is exact up to the banded solver's
+    # precision (its eq. 4 residual is ~1e-6 of the positions' extent here), so each
+    # dropped vertex must come back where the solve put it to well within 1e-4 of that
+    # extent - whether next to known vertices or several triangles away from them
+    s = surface("cylinder-convex")
+    cf = WarpPlanner(s.projector).content_free(s, CONTENT, WarpSettings())
+    mesh, v = cf.mesh, cf.v_conformal
+    extent = float(np.ptp(v, axis=0).max())
+    grid = mesh.grid.cols + 1
+    dropped = np.isin(mesh.verts, [10 * grid + 10, 10 * grid + 11, 11 * grid + 11, 0, 5])
+    gone = v.copy()
+    gone[dropped] = np.nan
+    filled = filled_by_shapes(gone, mesh.tris, mesh.coords)
+    assert filled is not None
+    np.testing.assert_array_equal(filled[~dropped], v[~dropped])
+    np.testing.assert_allclose(filled[dropped], v[dropped], rtol=0, atol=1e-4 * extent)
+    # none known, or one no triangle reaches: no positions
+    assert filled_by_shapes(np.full_like(v, np.nan), mesh.tris, mesh.coords) is None
+    alone = np.zeros((3, 2))
+    alone[2] = np.nan
+    assert filled_by_shapes(alone, np.array([[0, 1, 0]]), np.zeros((1, 3, 2))) is None
+
+
+def test_a_coarse_vertex_the_fine_mesh_misses_keeps_the_content_free_placement(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # sensed depth: holes around a fine vertex that the coarse grid keeps (its coarse
+    # triangles bridge them). The first refinement started there from a fresh solve of
+    # the coarse mesh placed afresh (on recorded real depth, hundreds of content pixels
+    # away from where the content-free warp shows the content, and a third of the
+    # refinement's time); it starts from the content-free warp's own placement
+    s = surface("cylinder-convex")
+    points = s.points.copy()
+    for dr, dc in [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]:
+        u, v = 64 * (10 + dc), 40 * (10 + dr)  # the 20x20 grid's vertices near its centre
+        points[v - 3 : v + 4, u - 3 : u + 4] = np.nan
+    holed = replace(s, points=points)
+    planner = WarpPlanner(s.projector, plan=PlanSettings(refine_factor=2))
+    settings = WarpSettings(mode="content", threshold=CONTENT_MAP_T)
+    cf = planner.content_free(holed, CONTENT, settings)
+    centre = 10 * (planner.grid.cols + 1) + 10
+    assert centre not in cf.verts  # the fine mesh misses it
+    placed_on: list[str] = []
+    place = planner_module.place
+    monkeypatch.setattr(
+        planner_module,
+        "place",
+        lambda mesh, *a, **k: placed_on.append(str(mesh.grid)) or place(mesh, *a, **k),
+    )
+    cmap = ContentMap(subject_masks()["quarter"], CONTENT, CONTENT_MAP_T)
+    warp = planner.refine(holed, cmap, settings, cf)
+    (coarse,) = cf.refinement_meshes.values()
+    assert 5 * (planner.coarse_grid.cols + 1) + 5 in coarse.verts  # the coarse mesh holds it
+    assert str(planner.coarse_grid) not in placed_on  # no placement of its own
+    assert warp.meta["chain"]["step"] == "content-aware"
+    assert fold_count(warp) == 0
 
 
 def test_fold_count_sees_a_flipped_vertex() -> None:
