@@ -103,7 +103,7 @@ from adaproj_edge.warp.fallback import (
     keystone_surface,
     repair,
 )
-from adaproj_edge.warp.guard import guard, guard_grid
+from adaproj_edge.warp.guard import conformal_measure, guard, guard_grid
 from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
 from adaproj_edge.warp.orientation import fold_count
 from adaproj_edge.warp.placement import Placement, place
@@ -190,6 +190,19 @@ class ContentFreeWarp:
         if known is None or known[0] is not content_map or not np.array_equal(known[1], up_p):
             known = self.known_guard = (content_map, up_p.copy(), {})
         return known[2]
+
+    def prepare(self, content_map: ContentMap, up: FloatArray | tuple[float, ...]) -> None:
+        """Make ahead what a coarse-to-fine refinement of this warp with ``content_map``
+        and ``up`` measures of it alone (its first one would): the conformal placement
+        (:attr:`conformal_placement`) and the guard's measure of the conformal warp on
+        the subject (:meth:`guard_memo`). The same values as made on first use, so the
+        same warps; a device that has a frame to spare before it refines (settled, the
+        content-free warp made the frame before) spends it so. Nothing for a warp down
+        the chain (never refined)."""
+        if self.step != "content-free":
+            return
+        conformal = (self.v_conformal, self.conformal_placement)
+        conformal_measure(self.mesh, conformal, content_map, self.guard_memo(content_map, up))
 
     def matches(self, depth: FloatArray, max_rel: float, min_overlap: float) -> bool:
         """Whether the lattice ``depth`` is (nearly) the surface this warp was made for

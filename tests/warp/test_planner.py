@@ -16,6 +16,7 @@ from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.geometry.analytic import DEVELOPABLE, NON_DEVELOPABLE, get_surface
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.render.frame import RemapMaps
+from adaproj_edge.warp import guard as guard_module
 from adaproj_edge.warp import planner as planner_module
 from adaproj_edge.warp.coarse import (
     coarse_cells_of,
@@ -330,3 +331,44 @@ def test_a_content_free_warp_placed_for_another_up_is_the_one_solved_for_it() ->
     assert abs(turned.placement.angle - first.placement.angle) == pytest.approx(a, abs=0.02)
     assert np.array_equal(turned.up, solved.up)
     assert turned.refinement_meshes is first.refinement_meshes  # the same surface
+
+
+def test_what_a_refinement_measures_of_the_conformal_warp_is_made_ahead_for_its_up(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # a settled device makes the conformal placement and the guard's measure of the
+    # conformal warp in the frame it makes the content-free warp: its first refinement
+    # makes neither again, and gives the same warp as one that made them itself
+    s = surface("sphere-concave")
+    level = WarpSettings(mode="content", threshold=CONTENT_MAP_T)
+    a = np.deg2rad(8.0)
+    rolled = replace(level, up=(np.sin(a), -np.cos(a), 0.0))
+    cmap = ContentMap(subject_masks()["quarter"], CONTENT, CONTENT_MAP_T)
+    planner = WarpPlanner(s.projector, plan=PlanSettings(refine_factor=2), cache=None)
+    cf = planner.content_free(s, CONTENT, level)
+    cf.prepare(cmap, level.up)
+    # re-placed for another "up": nothing made for the first one is kept
+    turned = planner.with_up(cf, rolled.up)
+    turned.prepare(cmap, rolled.up)
+    fresh = planner_module.place(turned.mesh, turned.v_conformal, CONTENT, rolled.up)
+    assert turned.conformal_placement.angle == pytest.approx(fresh.angle, abs=1e-12)
+    assert abs(turned.conformal_placement.angle - cf.conformal_placement.angle) > 0.1
+    xy = turned.guard_memo(cmap, rolled.up)["conformal"][0]
+    np.testing.assert_allclose(xy, fresh.apply(turned.v_conformal), rtol=0, atol=1e-9)
+    placed: list[str] = []
+    measured_xy: list[np.ndarray] = []
+    place, measured = planner_module.place, guard_module._measured
+    monkeypatch.setattr(
+        planner_module, "place", lambda m, *a, **k: placed.append(str(m.grid)) or place(m, *a, **k)
+    )
+    monkeypatch.setattr(
+        guard_module, "_measured", lambda m, xy, c: measured_xy.append(xy) or measured(m, xy, c)
+    )
+    ahead = planner.refine(s, cmap, rolled, turned)
+    assert placed == [] and measured_xy  # the guard measured its candidates alone
+    assert not any(np.array_equal(m, xy, equal_nan=True) for m in measured_xy)
+    monkeypatch.undo()
+    unprepared = planner.with_up(cf, rolled.up)  # (no warm start: the plan keeps none)
+    np.testing.assert_array_equal(
+        planner.refine(s, cmap, rolled, unprepared).image_xy, ahead.image_xy
+    )
