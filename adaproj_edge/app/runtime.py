@@ -507,15 +507,21 @@ class Runtime:
         return not self.plain and item.settings.mode == "content" and item.content_map is not None
 
     def _prepare(self, est: SurfaceEstimate) -> None:
-        """The content-free warp of the averaged ``est`` into the pose cache (nothing
-        shown)."""
+        """The content-free warp of the averaged ``est`` into the pose cache, and what
+        its first refinement measures of it alone (:meth:`PoseEntry.prepare`, timed as
+        ``refine_prep``; nothing shown)."""
         self._settle_prepared = True
         surface = self.surfaces.prepared(est)
         with self.telemetry.times.timer("prepare"):
             try:
-                self._pose(surface, est.frames, refine=True)
+                entry, _ = self._pose(surface, est.frames, refine=True)
             except AdaprojError as e:
                 self._fault("warp", f"no warp for this surface: {e}")
+                return
+            cmap = self._content_map()
+            if cmap is not None:
+                with self.telemetry.times.timer("refine_prep"):
+                    entry.prepare(cmap, self.up())
 
     def _pose(self, surface: Surface, frames: int, refine: bool) -> tuple[PoseEntry, bool]:
         """The pose entry of ``surface`` (averaged over ``frames`` depth frames) and

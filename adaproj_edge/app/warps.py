@@ -93,6 +93,13 @@ class PoseEntry:
     gain: GainMap | None = None
     gain_frames: int = 0
 
+    def prepare(self, content_map: ContentMap, up: FloatArray | tuple[float, ...]) -> None:
+        """Make ahead what the first content-aware refinement of this entry with
+        ``content_map`` and ``up`` measures of its content-free warp alone
+        (:meth:`~adaproj_edge.warp.planner.ContentFreeWarp.prepare`; kept on it, made
+        again for an entry re-placed for another "up")."""
+        self.content_free.prepare(content_map, up)
+
     @property
     def depth(self) -> FloatArray:
         """The lattice depth (R, C) of the surface this entry was made for."""

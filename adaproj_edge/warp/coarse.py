@@ -94,3 +94,45 @@ def coarse_cells_of(
     near[r[inside], c[inside]] = True
     near = ndimage.binary_dilation(near, structure=np.ones((3, 3), dtype=bool))
     return np.repeat(near.ravel(), 2)
+
+
+def filled_by_shapes(v: FloatArray, tris: IntArray, coords: FloatArray) -> FloatArray | None:
+    """Positions ``v`` (n, 2) with their NaN rows filled from the triangles around them:
+    a triangle (``tris`` (T, 3)) with two corners known places its third where its
+    shape on the surface puts it (its conformal ``coords`` (T, 3, 2), eq. 4 of the
+    paper: ``V1 = V2 + alpha (V3 - V2) + beta R90 (V3 - V2)``, ``R90`` a multiplication
+    by ``-i``), the mean of the triangles that place a vertex in the same round; round
+    after round from the known ones outward. None when no chain of triangles reaches
+    some vertex.
+
+    The device's coarse mesh may hold a vertex the fine mesh has not (on sensed depth, at
+    a hole's edge the coarse triangles bridge): its start fills it so, in the place the
+    content-free warp's similarity would put it, without a solve of its own."""
+    z = v[:, 0] + 1j * v[:, 1]
+    known = np.isfinite(z)
+    if known.all():
+        return v
+    if not known.any():
+        return None
+    coef = coords[..., 0] - 1j * coords[..., 1]  # (T, 3): role k's alpha - i beta
+    while True:  # (each round places a vertex at least, or ends)
+        at = known[tris]  # (T, 3)
+        total = np.zeros(z.size, dtype=np.complex128)
+        count = np.zeros(z.size)
+        for k in range(3):
+            k1, k2 = (k + 1) % 3, (k + 2) % 3
+            sel = np.flatnonzero(~at[:, k] & at[:, k1] & at[:, k2])
+            if sel.size == 0:
+                continue
+            p2, p3 = z[tris[sel, k1]], z[tris[sel, k2]]
+            guess = p2 + coef[sel, k] * (p3 - p2)
+            ok = np.isfinite(guess)
+            np.add.at(total, tris[sel[ok], k], guess[ok])
+            np.add.at(count, tris[sel[ok], k], 1.0)
+        new = np.flatnonzero(count > 0)
+        if new.size == 0:
+            return None
+        z[new] = total[new] / count[new]
+        known[new] = True
+        if known.all():
+            return np.stack([z.real, z.imag], axis=1)

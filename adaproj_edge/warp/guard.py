@@ -218,6 +218,23 @@ def _aligned(v: FloatArray, to: FloatArray) -> FloatArray:
     return np.stack([out.real, out.imag], axis=1)
 
 
+def conformal_measure(
+    mesh: MeshGeometry,
+    conformal: tuple[FloatArray, Placement],
+    content_map: ContentMap,
+    memo: dict[str, Any],
+) -> tuple[FloatArray, SubjectDistortion, FloatArray]:
+    """The conformal warp's content positions (n, 2), its measure on the subject and
+    the triangles' weights (:func:`guard`'s yardstick), kept in ``memo`` (made once:
+    :func:`guard`'s ``memo``, which a device may fill before its first refinement)."""
+    if "conformal" not in memo:
+        v, placement = conformal
+        xy = placement.apply(v)
+        memo["conformal"] = xy, *_measured(mesh, xy, content_map)
+    known: tuple[FloatArray, SubjectDistortion, FloatArray] = memo["conformal"]
+    return known
+
+
 def guard(
     mesh: MeshGeometry,
     aware: tuple[FloatArray, Placement],
@@ -279,10 +296,7 @@ def guard(
     memo = {} if memo is None or surface is not None else memo
     xy_aware = pa.apply(va)  # (each placed once, used again below)
     m_aware, w_aware = _measured(mesh, xy_aware, content_map)
-    if "conformal" not in memo:
-        xy = pc.apply(vc)
-        memo["conformal"] = xy, *_measured(mesh, xy, content_map)
-    xy_conf, m_conf, w_conf = memo["conformal"]
+    xy_conf, m_conf, w_conf = conformal_measure(mesh, conformal, content_map, memo)
     meta: dict[str, Any] = {"aware": m_aware.as_dict(), "conformal": m_conf.as_dict()}
     if m_aware.weight <= 0 or m_conf.weight <= 0:
         meta.update(choice="content-aware", reason="no salient content shows", t=1.0)

@@ -77,7 +77,12 @@ from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.geometry.surface import Surface
 from adaproj_edge.geometry.triangles import carry_through_triangles, grid_triangles
 from adaproj_edge.warp.adaptive import adaptive_mesh
-from adaproj_edge.warp.coarse import coarse_cells_of, coarse_indices, upsample_field
+from adaproj_edge.warp.coarse import (
+    coarse_cells_of,
+    coarse_indices,
+    filled_by_shapes,
+    upsample_field,
+)
 from adaproj_edge.warp.engine import (
     FAST,
     Backend,
@@ -98,7 +103,7 @@ from adaproj_edge.warp.fallback import (
     keystone_surface,
     repair,
 )
-from adaproj_edge.warp.guard import guard, guard_grid
+from adaproj_edge.warp.guard import conformal_measure, guard, guard_grid
 from adaproj_edge.warp.mesh import MeshGeometry, WarpCache
 from adaproj_edge.warp.orientation import fold_count
 from adaproj_edge.warp.placement import Placement, place, turned_with_mesh
@@ -185,6 +190,19 @@ class ContentFreeWarp:
         if known is None or known[0] is not content_map or not np.array_equal(known[1], up_p):
             known = self.known_guard = (content_map, up_p.copy(), {})
         return known[2]
+
+    def prepare(self, content_map: ContentMap, up: FloatArray | tuple[float, ...]) -> None:
+        """Make ahead what a coarse-to-fine refinement of this warp with ``content_map``
+        and ``up`` measures of it alone (its first one would): the conformal placement
+        (:attr:`conformal_placement`) and the guard's measure of the conformal warp on
+        the subject (:meth:`guard_memo`). The same values as made on first use, so the
+        same warps; a device that has a frame to spare before it refines (settled, the
+        content-free warp made the frame before) spends it so. Nothing for a warp down
+        the chain (never refined)."""
+        if self.step != "content-free":
+            return
+        conformal = (self.v_conformal, self.conformal_placement)
+        conformal_measure(self.mesh, conformal, content_map, self.guard_memo(content_map, up))
 
     def matches(self, depth: FloatArray, max_rel: float, min_overlap: float) -> bool:
         """Whether the lattice ``depth`` is (nearly) the surface this warp was made for
@@ -765,8 +783,12 @@ class WarpPlanner:
         factor: int,
     ) -> tuple[FloatArray, Placement, bool]:
         """Where the alternation starts: the last solution (warm, made on the grid of
-        the same ``factor``), the content-free positions at the coarse vertices, or
-        (where those miss) a fresh solve."""
+        the same ``factor``), the content-free positions at the coarse vertices (those
+        the fine mesh misses - at a hole's edge on sensed depth - placed by the coarse
+        triangles' shapes around them, :func:`~adaproj_edge.warp.coarse.filled_by_shapes`:
+        a fresh solve's placement cost as much as the rest of a first refinement and
+        put the content elsewhere than the content-free warp shows it), or, where no
+        triangle reaches them, a fresh solve."""
         last = self._last
         if (
             self.plan_settings.warm_start
@@ -777,8 +799,9 @@ class WarpPlanner:
         ):
             return last.v, last.placement, True  # near the answer already
         v0 = self._on_mesh(start.v, start, to_fine, mesh.verts)
-        if np.isfinite(v0).all():
-            return v0, start.placement, False
+        filled = filled_by_shapes(v0, mesh.tris, mesh.coords)
+        if filled is not None:  # in the content-free warp's placement: no new one
+            return filled, start.placement, False
         v, _ = self.backend.content_free(mesh, self.backend.conformal(mesh), settings.lam)
         return v, place(mesh, v, content_map.content_size, settings.up), False
 

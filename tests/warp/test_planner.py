@@ -4,6 +4,7 @@ fields; and compute_warp as the planner's one-shot path."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import cache
 
 import cv2
@@ -15,8 +16,14 @@ from adaproj_edge.content.contentmap import ContentMap
 from adaproj_edge.geometry.analytic import DEVELOPABLE, NON_DEVELOPABLE, get_surface
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.render.frame import RemapMaps
+from adaproj_edge.warp import guard as guard_module
 from adaproj_edge.warp import planner as planner_module
-from adaproj_edge.warp.coarse import coarse_cells_of, coarse_indices, upsample_field
+from adaproj_edge.warp.coarse import (
+    coarse_cells_of,
+    coarse_indices,
+    filled_by_shapes,
+    upsample_field,
+)
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.mesh import MeshGeometry
 from adaproj_edge.warp.orientation import fold_count
@@ -100,6 +107,65 @@ def test_the_coarse_mesh_finds_the_ruled_creases_next_to_the_fine_meshs(
     nowhere = np.zeros(2 * hinted.grid.rows * hinted.grid.cols, dtype=bool)
     blind = MeshGeometry.build(sim, hinted.grid, None, hinted.grid_uv, nowhere)
     assert not blind.ruled.any()
+
+
+def test_vertices_missing_from_a_mesh_are_filled_where_its_triangles_shapes_put_them() -> None:
+    # a developable surface: the conformal solve is exact up to the banded solver's
+    # precision (its eq. 4 residual is ~1e-6 of the positions' extent here), so each
+    # dropped vertex must come back where the solve put it to well within 1e-4 of that
+    # extent - whether next to known vertices or several triangles away from them
+    s = surface("cylinder-convex")
+    cf = WarpPlanner(s.projector).content_free(s, CONTENT, WarpSettings())
+    mesh, v = cf.mesh, cf.v_conformal
+    extent = float(np.ptp(v, axis=0).max())
+    grid = mesh.grid.cols + 1
+    dropped = np.isin(mesh.verts, [10 * grid + 10, 10 * grid + 11, 11 * grid + 11, 0, 5])
+    gone = v.copy()
+    gone[dropped] = np.nan
+    filled = filled_by_shapes(gone, mesh.tris, mesh.coords)
+    assert filled is not None
+    np.testing.assert_array_equal(filled[~dropped], v[~dropped])
+    np.testing.assert_allclose(filled[dropped], v[dropped], rtol=0, atol=1e-4 * extent)
+    # none known, or one no triangle reaches: no positions
+    assert filled_by_shapes(np.full_like(v, np.nan), mesh.tris, mesh.coords) is None
+    alone = np.zeros((3, 2))
+    alone[2] = np.nan
+    assert filled_by_shapes(alone, np.array([[0, 1, 0]]), np.zeros((1, 3, 2))) is None
+
+
+def test_a_coarse_vertex_the_fine_mesh_misses_keeps_the_content_free_placement(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # sensed depth: holes around a fine vertex that the coarse grid keeps (its coarse
+    # triangles bridge them). The first refinement started there from a fresh solve of
+    # the coarse mesh placed afresh (on recorded real depth, hundreds of content pixels
+    # away from where the content-free warp shows the content, and a third of the
+    # refinement's time); it starts from the content-free warp's own placement
+    s = surface("cylinder-convex")
+    points = s.points.copy()
+    for dr, dc in [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]:
+        u, v = 64 * (10 + dc), 40 * (10 + dr)  # the 20x20 grid's vertices near its centre
+        points[v - 3 : v + 4, u - 3 : u + 4] = np.nan
+    holed = replace(s, points=points)
+    planner = WarpPlanner(s.projector, plan=PlanSettings(refine_factor=2))
+    settings = WarpSettings(mode="content", threshold=CONTENT_MAP_T)
+    cf = planner.content_free(holed, CONTENT, settings)
+    centre = 10 * (planner.grid.cols + 1) + 10
+    assert centre not in cf.verts  # the fine mesh misses it
+    placed_on: list[str] = []
+    place = planner_module.place
+    monkeypatch.setattr(
+        planner_module,
+        "place",
+        lambda mesh, *a, **k: placed_on.append(str(mesh.grid)) or place(mesh, *a, **k),
+    )
+    cmap = ContentMap(subject_masks()["quarter"], CONTENT, CONTENT_MAP_T)
+    warp = planner.refine(holed, cmap, settings, cf)
+    (coarse,) = cf.refinement_meshes.values()
+    assert 5 * (planner.coarse_grid.cols + 1) + 5 in coarse.verts  # the coarse mesh holds it
+    assert str(planner.coarse_grid) not in placed_on  # no placement of its own
+    assert warp.meta["chain"]["step"] == "content-aware"
+    assert fold_count(warp) == 0
 
 
 def test_fold_count_sees_a_flipped_vertex() -> None:
@@ -265,3 +331,44 @@ def test_a_content_free_warp_placed_for_another_up_is_the_one_solved_for_it() ->
     assert abs(turned.placement.angle - first.placement.angle) == pytest.approx(a, abs=0.02)
     assert np.array_equal(turned.up, solved.up)
     assert turned.refinement_meshes is first.refinement_meshes  # the same surface
+
+
+def test_what_a_refinement_measures_of_the_conformal_warp_is_made_ahead_for_its_up(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # a settled device makes the conformal placement and the guard's measure of the
+    # conformal warp in the frame it makes the content-free warp: its first refinement
+    # makes neither again, and gives the same warp as one that made them itself
+    s = surface("sphere-concave")
+    level = WarpSettings(mode="content", threshold=CONTENT_MAP_T)
+    a = np.deg2rad(8.0)
+    rolled = replace(level, up=(np.sin(a), -np.cos(a), 0.0))
+    cmap = ContentMap(subject_masks()["quarter"], CONTENT, CONTENT_MAP_T)
+    planner = WarpPlanner(s.projector, plan=PlanSettings(refine_factor=2), cache=None)
+    cf = planner.content_free(s, CONTENT, level)
+    cf.prepare(cmap, level.up)
+    # re-placed for another "up": nothing made for the first one is kept
+    turned = planner.with_up(cf, rolled.up)
+    turned.prepare(cmap, rolled.up)
+    fresh = planner_module.place(turned.mesh, turned.v_conformal, CONTENT, rolled.up)
+    assert turned.conformal_placement.angle == pytest.approx(fresh.angle, abs=1e-12)
+    assert abs(turned.conformal_placement.angle - cf.conformal_placement.angle) > 0.1
+    xy = turned.guard_memo(cmap, rolled.up)["conformal"][0]
+    np.testing.assert_allclose(xy, fresh.apply(turned.v_conformal), rtol=0, atol=1e-9)
+    placed: list[str] = []
+    measured_xy: list[np.ndarray] = []
+    place, measured = planner_module.place, guard_module._measured
+    monkeypatch.setattr(
+        planner_module, "place", lambda m, *a, **k: placed.append(str(m.grid)) or place(m, *a, **k)
+    )
+    monkeypatch.setattr(
+        guard_module, "_measured", lambda m, xy, c: measured_xy.append(xy) or measured(m, xy, c)
+    )
+    ahead = planner.refine(s, cmap, rolled, turned)
+    assert placed == [] and measured_xy  # the guard measured its candidates alone
+    assert not any(np.array_equal(m, xy, equal_nan=True) for m in measured_xy)
+    monkeypatch.undo()
+    unprepared = planner.with_up(cf, rolled.up)  # (no warm start: the plan keeps none)
+    np.testing.assert_array_equal(
+        planner.refine(s, cmap, rolled, unprepared).image_xy, ahead.image_xy
+    )
