@@ -20,11 +20,18 @@ Inside a triangle the plane is a chord of the surface: projected onto it, a poin
 a bent surface lands short of where the surface's development puts it (by the cell's
 turn squared: on a cone turning away, 0.1 across a cell, 1.3 % of size). So where the
 surface bends (:data:`BENT`) a pixel is placed from its distances to the triangle's
-corners as the development measures them - each chord lengthened by what the corner's
-normal says the surface bows out, ``|d|^2 + (n . d)^2 / 3`` squared (an arc of
-constant curvature, to fourth order) - in the triangle whose sides are measured the
-same way. On a plane this is the orthogonal projection, and two neighbours agree on
-their shared edge to third order rather than second.
+corners as the development measures them - each chord lengthened by what the normals
+at its ends, the corner's and the pixel's own, say the surface bows out
+(:func:`bow`: the curve under the chord a cubic with those end slopes, to fourth
+order) - in the triangle whose sides are measured the same way. On a plane this is the
+orthogonal projection, and two neighbours agree on their shared edge to third order
+rather than second. The pixel's own normal matters where the curvature changes across
+a cell: a wavy wall seen rolled, its rulings oblique, is split both ways to the vertex
+budget and its cells span a sixth of a wave; placed as on an arc of constant curvature
+from the corner, the pixels missed the crests and troughs (mean angle 1.3e-3 rolled 60
+deg, 2.1e-3 at 45; 3.5e-4 and 4.8e-4 with the pixel's normal). In a triangle where a
+pixel has no normal (a kink: a crease its corners do not show) the pixels' normals are
+not used.
 
 Weights are returned on six vertices per pixel: the three corners of its triangle and
 the far corner of each neighbour across its edges.
@@ -54,8 +61,10 @@ BAND_SHARE = 0.7
 # a triangle whose corners' normals lean out of its plane by more than this (the sine)
 # is placed on its development; within it the chord is exact to 1e-5 of a side
 BENT = 0.005
-# ... and by less than this (a corner on a crease or a silhouette has no one normal)
-BENT_MOST = 0.3
+# ... and by less than this (a corner on a crease or a silhouette has no one normal; a
+# wavy wall rolled 45 deg, its cells a sixth of a wave, leans up to ~0.4: at 0.3 the
+# triangles over its flanks were projected, mean angle 9.5e-4, 4.8e-4 with them placed)
+BENT_MOST = 0.6
 # the sine of the turn between the surface's steps either side of a vertex above which
 # it is a kink (a crease through the vertex), not a bend: a corner of 150 deg turns 0.5;
 # the wide cone rolled 90 deg, seen near grazing, turns by more than 0.03 in a pixel
@@ -132,7 +141,7 @@ def _frames(unfolding: Unfolding, vertex_normals: FloatArray | None, corners: In
 
     def developed(e: FloatArray, na: FloatArray, nb: FloatArray) -> FloatArray:
         return np.asarray(
-            np.sum(e * e, axis=1) + (np.sum(na * e, axis=1) ** 2 + np.sum(nb * e, axis=1) ** 2) / 6
+            np.sum(e * e, axis=1) + bow(np.sum(na * e, axis=1), np.sum(nb * e, axis=1))
         )
 
     g01 = developed(a[:, 0], n[:, 0], n[:, 1])
@@ -156,6 +165,16 @@ def _frames(unfolding: Unfolding, vertex_normals: FloatArray | None, corners: In
     return _Frames(plane, offset, bent, origin, a, n, lean_nb, sq, to_bary, bary_0)
 
 
+def bow(p: FloatArray, q: FloatArray) -> FloatArray:
+    """What a chord ``d`` of a surface gains in squared length on the development:
+    ``|d|^2 + bow(n_a . d, n_b . d)`` for the unit normals ``n_a``, ``n_b`` at its ends,
+    the curve under it taken as a cubic with the slopes those normals give (``(2 p^2 +
+    2 q^2 - p q) / 15``, to fourth order in the slopes; an arc of constant curvature,
+    ``q = -p``, gives ``p^2 / 3``)."""
+    out: FloatArray = (2 * p * p + 2 * q * q - p * q) / 15
+    return out
+
+
 def _planes(unfolding: Unfolding) -> tuple[FloatArray, FloatArray]:
     """For each (unfolded) triangle (T, 3, 3): the (T, 2, 3) matrix and (T, 2) offset that
     give the barycentric weights (u, v) of corners 1 and 2 of a point's orthogonal
@@ -173,22 +192,51 @@ def _planes(unfolding: Unfolding) -> tuple[FloatArray, FloatArray]:
     return bary, np.einsum("tij,tj->ti", bary, origin)
 
 
-def _project(t: IntArray, Xu: FloatArray, frames: _Frames) -> FloatArray:
+def _project(
+    t: IntArray,
+    Xu: FloatArray,
+    frames: _Frames,
+    normals: FloatArray | None = None,
+    kinked: BoolArray | None = None,
+) -> FloatArray:
     """Barycentric weights (..., 3) on the corners of triangles ``t`` (...) of the
     (unfolded) surface points ``Xu`` (..., 3): projected onto each triangle's plane, or
     where it is bent (:func:`_frames`) placed from their developed squared distances to
-    its corners."""
-    uv = np.einsum("...ij,...j->...i", frames.plane[t], Xu) - frames.offset[t]
+    its corners (:func:`bow`, with the points' own unit ``normals`` (..., 3) where
+    given and finite and the triangle is not ``kinked`` (T,); else as an arc of
+    constant curvature from the corner)."""
+    shape = t.shape
+    t = t.reshape(-1)
+    Xu = Xu.reshape(-1, 3)
+    uv = np.einsum("nij,nj->ni", frames.plane[t], Xu) - frames.offset[t]
     on = frames.bent[t]
     if np.any(on):
-        tb = t[on]
-        y = Xu[on] - frames.origin[tb]
-        ya = np.einsum("nkj,nj->nk", frames.edges[tb], y)  # (n, 2)
-        ny = np.einsum("nkj,nj->nk", frames.normals[tb], y)  # (n, 3)
-        # D_0 - D_k, D_k = |y - a_k|^2 + (n_k . (y - a_k))^2 / 3
-        r = 2 * ya - frames.sq[tb] + (ny[:, :1] ** 2 - (ny[:, 1:] - frames.lean[tb]) ** 2) / 3
-        uv[on] = np.einsum("nij,nj->ni", frames.to_bary[tb], r) + frames.bary_0[tb]
-    return np.concatenate([1.0 - uv.sum(axis=-1, keepdims=True), uv], axis=-1)
+        sel: slice | IntArray = slice(None) if np.all(on) else np.flatnonzero(on)
+        tb = t[sel]
+        y = Xu[sel] - frames.origin[tb]
+        edges = frames.edges[tb]  # (n, 2, 3)
+        ya = np.einsum("nkj,nj->nk", edges, y)  # (n, 2)
+        p = np.einsum("nkj,nj->nk", frames.normals[tb], y)  # (n, 3): n_k . y
+        p[:, 1:] -= frames.lean[tb]  # n_k . (y - a_k), a_0 = 0
+        if normals is None:
+            q = -p
+        else:
+            nx = normals.reshape(-1, 3)[sel]
+            q = np.empty_like(p)  # n_x . (y - a_k)
+            q[:, 0] = np.einsum("nj,nj->n", nx, y)
+            q[:, 1:] = q[:, :1] - np.einsum("nkj,nj->nk", edges, nx)
+            unknown = ~np.isfinite(q)
+            if kinked is not None:
+                unknown |= kinked[tb][:, None]
+            q[unknown] = -p[unknown]
+        gain = bow(p, q)
+        # D_0 - D_k, D_k = |y - a_k|^2 + gain_k
+        r = 2 * ya - frames.sq[tb] + gain[:, :1] - gain[:, 1:]
+        uv[sel] = np.einsum("nij,nj->ni", frames.to_bary[tb], r) + frames.bary_0[tb]
+    out = np.empty((t.size, 3))
+    out[:, 0] = 1.0 - uv.sum(axis=1)
+    out[:, 1:] = uv
+    return out.reshape(*shape, 3)
 
 
 def vertex_normals(surface: Surface, grid_uv: FloatArray, step: float = 1.0) -> FloatArray:
@@ -198,16 +246,34 @@ def vertex_normals(surface: Surface, grid_uv: FloatArray, step: float = 1.0) -> 
     :data:`KINK`), where the surface has no one normal."""
     uv = grid_uv.reshape(-1, 2)
     here = surface.points_at(uv).astype(np.float64)
-    kinked = np.zeros(len(uv), dtype=bool)
 
-    def tangent(axis: int) -> FloatArray:
+    def at(axis: int, sign: float) -> FloatArray:
         d = np.zeros(2)
-        d[axis] = step
-        ahead = surface.points_at(uv + d).astype(np.float64) - here
-        behind = here - surface.points_at(uv - d).astype(np.float64)
+        d[axis] = sign * step
+        out: FloatArray = surface.points_at(uv + d).astype(np.float64)
+        return out
+
+    return _normals(here, at(0, 1), at(0, -1), at(1, 1), at(1, -1))
+
+
+def _normals(
+    here: FloatArray,
+    x_ahead: FloatArray,
+    x_behind: FloatArray,
+    y_ahead: FloatArray,
+    y_behind: FloatArray,
+) -> FloatArray:
+    """Unit normals (..., 3) at the points ``here`` (..., 3) from their neighbours a
+    step ahead and behind along x and y (..., 3 each, NaN where none):
+    :func:`vertex_normals`."""
+    kinked = np.zeros(here.shape[:-1], dtype=bool)
+
+    def tangent(ahead: FloatArray, behind: FloatArray) -> FloatArray:
+        ahead = ahead - here
+        behind = here - behind
         with np.errstate(invalid="ignore", divide="ignore"):
-            turn = np.linalg.norm(np.cross(ahead, behind), axis=1) / (
-                np.linalg.norm(ahead, axis=1) * np.linalg.norm(behind, axis=1)
+            turn = np.linalg.norm(np.cross(ahead, behind), axis=-1) / (
+                np.linalg.norm(ahead, axis=-1) * np.linalg.norm(behind, axis=-1)
             )
         kinked[turn > KINK] = True
         t = ahead + behind
@@ -215,10 +281,49 @@ def vertex_normals(surface: Surface, grid_uv: FloatArray, step: float = 1.0) -> 
         out: FloatArray = np.where(np.isfinite(t), t, behind)
         return out
 
-    n = np.cross(tangent(0), tangent(1))
+    n = np.cross(tangent(x_ahead, x_behind), tangent(y_ahead, y_behind))
     n[kinked] = np.nan
     with np.errstate(invalid="ignore", divide="ignore"):
-        out: FloatArray = n / np.linalg.norm(n, axis=1, keepdims=True)
+        out: FloatArray = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    return out
+
+
+def _pixel_normals(
+    surface: Surface,
+    projector: Projector,
+    X: FloatArray,
+    tri: IntArray,
+    bent: BoolArray,
+    dense: bool,
+) -> FloatArray:
+    """Unit normals (H, W, 3) of the surface at the pixels' points ``X`` (H, W, 3)
+    (:func:`vertex_normals` at the pixels they are seen at; ``dense``: ``X`` is every
+    pixel's, its neighbours are those of the frame) where the pixel's triangle ``tri``
+    (H, W) is ``bent`` (T,); NaN elsewhere and at a kink."""
+    out = np.full(X.shape, np.nan)
+    at = bent[tri] & np.isfinite(X).all(axis=-1)
+    if not np.any(at):
+        return out
+    if dense:
+        pad = np.full((X.shape[0] + 2, X.shape[1] + 2, 3), np.nan)
+        pad[1:-1, 1:-1] = X
+        n = _normals(X, pad[1:-1, 2:], pad[1:-1, :-2], pad[2:, 1:-1], pad[:-2, 1:-1])
+        out[at] = n[at]
+    else:
+        out[at] = vertex_normals(surface, projector.project(X[at]))
+    return out
+
+
+def _kinked(tri: IntArray, normals: FloatArray, bent: BoolArray) -> BoolArray:
+    """(T,): the ``bent`` triangles in which a pixel of ``tri`` (H, W) has no normal
+    (``normals`` (H, W, 3) from :func:`_pixel_normals`): a kink, a crease running
+    through that its corners do not show. There the surface between a corner and a
+    pixel beyond the crease is no cubic, and the pixels' normals are not used (by the
+    triangle's own pixels and by its neighbours' in its frame alike, so that the places
+    blended across its edges are the same either side)."""
+    out = np.zeros(bent.size, dtype=bool)
+    none = bent[tri] & ~np.isfinite(normals).all(axis=-1)
+    out[tri[none]] = True
     return out
 
 
@@ -317,7 +422,9 @@ def surface_weights(
     X = (surface.dense().points if points is None else points).astype(np.float64)
     X_own = unfolding.unfold_points(tri, X)
     normals = triangle_normals(unfolding.points)
-    own = _project(tri, X_own, frames)  # (H, W, 3)
+    nX = _pixel_normals(surface, projector, X, tri, frames.bent, points is None)
+    kinked = _kinked(tri, nX, frames.bent)
+    own = _project(tri, X_own, frames, nX, kinked)  # (H, W, 3)
     has_depth = np.isfinite(depth.reshape(-1))
     tri_ok = np.asarray(has_depth[corners].all(axis=1), dtype=bool)
     # the band: pixel distance to each edge, from the pixel-space barycentrics
@@ -350,7 +457,11 @@ def surface_weights(
             continue
         t_nb = nb[idx]
         w_nb = _project(
-            t_nb, _in_frame_of(tri[idx], t_nb, X[idx], X_own[idx], unfolding, normals), frames
+            t_nb,
+            _in_frame_of(tri[idx], t_nb, X[idx], X_own[idx], unfolding, normals),
+            frames,
+            nX[idx],
+            kinked,
         )  # (N, 3)
         good = np.all(np.isfinite(w_nb), axis=1)
         idx = (idx[0][good], idx[1][good])

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from adaproj_edge.geometry.analytic import ConeWall, Corner, Cylinder, simulate_surface
+from adaproj_edge.geometry.analytic import SURFACES, ConeWall, Corner, Cylinder, simulate_surface
 from adaproj_edge.render.maps import map_from_warp
 from adaproj_edge.warp.engine import WarpSettings
 from adaproj_edge.warp.planner import compute_warp
@@ -83,6 +83,13 @@ CASES = [
         turned(Corner("corner", x0=0.13, z0=1.8), 15.0, -20.0, 45.0),
         id="corner90-rolled",
     ),
+    # the wavy wall rolled 60 deg: its rulings run obliquely, the grid is split both
+    # ways to its vertex budget and each cell spans a sixth of a wave (turns up to 0.4).
+    # A pixel placed from its developed distances to the corners as if on an arc of
+    # constant curvature (the corner's normal alone), and not at all where a corner's
+    # normal leaned out of the plane by more than 0.3, missed the crests and troughs
+    # (mean angle 1.3e-3); placed as on a cubic with its own normal too, 3.5e-4, 1.9e-4
+    pytest.param(turned(SURFACES["waves"], 0.0, 0.0, 60.0), id="waves-rolled"),
 ]
 
 
