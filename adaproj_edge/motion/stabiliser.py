@@ -207,9 +207,12 @@ class Stabiliser:
 
     @property
     def turning(self) -> bool:
-        """Whether the device is being turned on purpose (:attr:`turning_rate` over
-        ``moving_rate``), not only trembling."""
-        return self.turning_rate >= self.settings.moving_rate
+        """Whether the device is being turned on purpose, not only trembling: the
+        deliberate rate over ``moving_rate`` now and over the window
+        (:attr:`turning_rate`). The window's mean tells the turn from the tremor; the
+        rate of the moment ends the turn when the hand stops, not a window later."""
+        mr = self.settings.moving_rate
+        return self.turning_rate >= mr and self.deliberate_rate >= mr
 
     @property
     def bias(self) -> FloatArray:

@@ -223,3 +223,26 @@ def test_the_simulated_hand_s_strong_tremor_is_not_a_turn() -> None:
     # the true rate's mean over the session is under 0.001 rad/s; the learnt offset's
     # error goes into the turning rate whole: a fifth of moving_rate at most
     assert worst_bias < 0.2 * StabiliserSettings().moving_rate
+
+
+def test_a_turn_ends_when_the_hand_stops_not_a_window_later() -> None:
+    """A turn of 20 degrees a second for 1 s under a light tremor (0.05 degrees RMS):
+    ``turning`` ends with the low-passed rate of the moment, within 0.32 s of the stop
+    (the two low-passes' step response falls from 0.35 to under 0.04 rad/s in 3.6 time
+    constants of 0.08 s: 0.29 s); the window's mean alone would end it after another
+    0.1 s (0.44 s), a frame published then taken for one following a turn (shown at
+    once: at a corner after each move, jitter ratio 0.127 -> 0.183)."""
+    t = np.arange(0, 3.6, 1 / RATE_HZ)
+    rate = _narrow_tremor(t, np.deg2rad(0.05), 9.5, seed=1)
+    on = (t >= 2.0) & (t < 3.0)
+    rate[on, 1] += np.deg2rad(20.0)
+    st = Stabiliser(PROJ.K, SIZE)
+    turning, mean_says = [], []
+    for k in range(len(t)):
+        st.add_gyro(round(t[k] * 1e9), rate[k])
+        turning.append(st.turning)
+        mean_says.append(st.turning_rate >= st.settings.moving_rate)
+    after = t - 3.0
+    assert np.array(turning)[(after > 0.0) & (after < 0.25)].all()
+    assert not np.array(turning)[after >= 0.32].any()
+    assert np.array(mean_says)[(after >= 0.32) & (after < 0.4)].all()
