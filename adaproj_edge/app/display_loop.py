@@ -21,8 +21,9 @@ the identity; ``glide_moving_s`` for a frame published while the device is turne
 purpose). A larger change (over ``max_glide`` of the margin: other content, a frame that
 follows a deliberate turn) is shown at once, except where it is the same surface
 measured again: while the device is not turned on purpose (the stabiliser's ``turning``:
-the deliberate rate's mean over a quarter of a second under ``moving_rate``; a strong
-tremor lifts the rate of the moment over it while the hand holds still), or when a frame
+the deliberate rate over ``moving_rate`` now and in its mean over a quarter of a
+second; a strong tremor lifts the rate of the moment alone over it while the hand holds
+still), or when a frame
 made from a surface averaged over more depth frames replaces one from fewer (the
 hand-over after a move), it glides from as far as ``max_handover_glide`` of the frame's
 size (judged at the content points, not at the frame's corners: a re-placement on a

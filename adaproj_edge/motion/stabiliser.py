@@ -45,6 +45,8 @@ the rotation that rate accumulates over ``turn_window_s`` (its mean,
 :class:`~adaproj_edge.motion.rates.WindowMean`) to be over ``moving_rate``. The
 tremor's residue reverses every 40-125 ms (4-12 Hz) and averages out over the window;
 a turn keeps one direction, and a turn of 20 degrees a second shows within ~0.13 s.
+The rate of the moment must be over ``moving_rate`` too: the turn ends when the hand
+stops (~0.3 s after, the low-passes' decay), not a window later.
 
 Gyro bias
 ---------
