@@ -13,24 +13,25 @@ as rendered (the runtime before the display loop).
 
 A new frame of the same content places it a little differently from the last one (a
 refinement redistributes it, a new surface estimate or "up" moves it by a few
-millimetres): shown as it comes, that is a jump. Instead the new frame starts where
-the old one's content was on the display (the homography that best carries the new
-placement of a grid of content points onto the old one: a change of shape as well as a
-shift) and glides to its own placement with time constant ``glide_s`` (the homography
-eased towards the identity; ``glide_moving_s`` for a frame published while the device
-is turned on purpose). A larger change (over
-``max_glide`` of the margin: other content, a frame that follows a deliberate turn)
-is shown at once, except where it is the same surface measured again: while the
-device is not turned on purpose (the stabiliser's deliberate rate under its
-``moving_rate``), or when a frame made from a surface averaged over more depth frames
-replaces one from fewer (the hand-over after a move), it glides from as far as
-``max_handover_glide`` of the frame's size (judged at the content points, not at the
-frame's corners: a re-placement on a corner is no homography, and the fit's corners can
-sit twice as far off as the content). Single-frame surfaces miss nodes where the
-depth had holes, and their placement can sit a tenth of the frame away from the
-averaged one's (or the next single frame's), a fifth smaller: shown at once, that is
-a jump of centimetres while the hand holds still (after each move; and on and on
-while a strong tremor keeps the motion tracker's "moving" on).
+millimetres): shown as it comes, that is a jump. Instead the new frame starts where the
+old one's content was on the display (the homography that best carries the new placement
+of a grid of content points onto the old one: a change of shape as well as a shift) and
+glides to its own placement with time constant ``glide_s`` (the homography eased towards
+the identity; ``glide_moving_s`` for a frame published while the device is turned on
+purpose). A larger change (over ``max_glide`` of the margin: other content, a frame that
+follows a deliberate turn) is shown at once, except where it is the same surface
+measured again: while the device is not turned on purpose (the stabiliser's ``turning``:
+the deliberate rate over ``moving_rate`` now and in its mean over a quarter of a
+second; a strong tremor lifts the rate of the moment alone over it while the hand holds
+still), or when a frame
+made from a surface averaged over more depth frames replaces one from fewer (the
+hand-over after a move), it glides from as far as ``max_handover_glide`` of the frame's
+size (judged at the content points, not at the frame's corners: a re-placement on a
+corner is no homography, and the fit's corners can sit twice as far off as the content).
+Single-frame surfaces miss nodes where the depth had holes, and their placement can sit
+a tenth of the frame away from the averaged one's (or the next single frame's), a fifth
+smaller: shown at once, that is a jump of centimetres while the hand holds still (after
+each move; and on and on while a strong tremor keeps the motion tracker's "moving" on).
 
 Threads (on the device, :func:`run_display`): the display thread owns the display and
 the frame being prepared; the runtime's thread renders and publishes; the IMU reader's
@@ -255,13 +256,15 @@ class DisplayLoop:
     def _glide_tau(self) -> float:
         """The glide's time constant for a frame published now: ``glide_s`` held still,
         towards ``glide_moving_s`` as the device is turned on purpose (the stabiliser's
-        deliberate rate, blended as its follower's time constant is). Turned, frames
-        come every ``moving_interval_s``: a slow glide would never finish, and each new
-        frame would start from the last one's lag (the content's tilt and place behind
-        the device's by a glide's worth after the turn)."""
+        turning rate, the deliberate rate's mean over its window, blended as its
+        follower's time constant is: the rate of the moment, lifted by a strong tremor,
+        made held-still glides quick). Turned, frames come every
+        ``moving_interval_s``: a slow glide would never finish, and each new frame would
+        start from the last one's lag (the content's tilt and place behind the device's
+        by a glide's worth after the turn)."""
         s = self.settings
         with self._imu_lock:
-            v = self.stabiliser.deliberate_rate / self.settings.stabiliser.moving_rate
+            v = self.stabiliser.turning_rate / self.settings.stabiliser.moving_rate
         return s.glide_moving_s + (s.glide_s - s.glide_moving_s) / (1.0 + v * v)
 
     def _glide_to(self, new: Shown, t_ns: int) -> FloatArray:
@@ -299,7 +302,9 @@ class DisplayLoop:
         # glide has it now: a small change during a glide carries the glide on
         G = G_old @ A
         with self._imu_lock:
-            held = self.stabiliser.deliberate_rate < s.stabiliser.moving_rate
+            # turned on purpose, not only trembling: a strong tremor lifts the
+            # deliberate rate itself over moving_rate while the hand holds still
+            held = not self.stabiliser.turning
         if held or new.frames > old.frames > 0:  # the same surface, measured again
             # judged where the content is: a re-placement across a corner's crease is
             # no homography, and the fit's frame corners can sit twice as far off

@@ -12,6 +12,12 @@ out), stays under ``still_rate``: a sample counts once the device has stayed sti
 ``hold_s`` after it, so the first samples of a turn (before the low-pass shows it) are
 never learnt. Tremor and sway average out. The estimate is kept within ``max_bias`` per
 axis (an LSM6DSOX's zero-rate level is about 1 dps).
+
+:class:`WindowMean` is the mean of a 3-vector over the last ``window_s``: of the
+low-passed rate, the rotation it accumulates over the window, divided by it. Held
+still, what the low-pass leaves of a strong tremor (0.5 degrees RMS: about 0.04 rad/s,
+as much as a slow deliberate turn) still swings to and fro every 40-125 ms and
+averages out over 0.2 s; a turn keeps one direction and stays.
 """
 
 from __future__ import annotations
@@ -121,3 +127,50 @@ class GyroBias:
         self.raw.reset()
         self._pending.clear()
         self._pending_s = 0.0
+
+
+class WindowMean:
+    """The mean of a 3-vector over the last ``window_s`` seconds (the sum of its samples
+    times their ``dt`` over the window, divided by ``window_s``: until the window is
+    full it reads low).
+
+    Parameters
+    ----------
+    window_s : float
+        The window (seconds).
+    """
+
+    def __init__(self, window_s: float) -> None:
+        self.window_s = window_s
+        self._items: deque[tuple[FloatArray, float]] = deque()
+        self._sum = np.zeros(3)
+        self._span_s = 0.0
+        self._count = 0
+
+    def update(self, x: FloatArray, dt: float) -> FloatArray:
+        """Take ``x`` (3,), held for the ``dt`` seconds up to now; the mean (3,)."""
+        step = np.asarray(x, dtype=np.float64) * dt
+        self._items.append((step, dt))
+        self._sum += step
+        self._span_s += dt
+        while self._items and self._span_s - self._items[0][1] >= self.window_s:
+            old, odt = self._items.popleft()
+            self._sum -= old
+            self._span_s -= odt
+        self._count += 1
+        if self._count >= 4096:  # the running sum re-added now and then (rounding)
+            self._sum = np.sum([v for v, _ in self._items], axis=0)
+            self._count = 0
+        return self.value
+
+    @property
+    def value(self) -> FloatArray:
+        """The mean (3,)."""
+        out: FloatArray = self._sum / self.window_s
+        return out
+
+    def reset(self) -> None:
+        """Forget the window."""
+        self._items.clear()
+        self._sum = np.zeros(3)
+        self._span_s = 0.0

@@ -35,11 +35,27 @@ carried along by the deliberate rate, as the follower is): aimed at the orientat
 the moment, it let a share of a strong tremor through. ``margin = 0`` turns
 stabilisation off (``C`` is the identity).
 
+Turned on purpose, or trembling?
+--------------------------------
+The deliberate rate ``v`` is the low-passed rate: under a strong tremor (0.5 degrees
+RMS) what the low-pass leaves of it is about ``moving_rate`` itself, while the device
+is held still. It sets the follower's time constant (a blend, harmless there), but it
+cannot say *whether* the device is turned on purpose: :attr:`Stabiliser.turning` asks
+the rotation that rate accumulates over ``turn_window_s`` (its mean,
+:class:`~adaproj_edge.motion.rates.WindowMean`) to be over ``moving_rate``. The
+tremor's residue reverses every 40-125 ms (4-12 Hz) and averages out over the window;
+a turn keeps one direction, and a turn of 20 degrees a second shows within ~0.13 s.
+The rate of the moment must be over ``moving_rate`` too: the turn ends when the hand
+stops (~0.3 s after, the low-passes' decay), not a window later.
+
 Gyro bias
 ---------
 A gyro's zero-rate offset integrates into a steady turn: it is learnt while the device
 is held still (:class:`~adaproj_edge.motion.rates.GyroBias`) and removed before
-integration.
+integration. It is learnt from the low-passed rate, as the motion tracker's is: averaged
+raw, a 0.5-degree tremor (~1 rad/s RMS of rate) left it off by up to 0.05 rad/s over
+12 s held still, and that error is a steady "turn" in the deliberate rate (the
+window's mean of it went over ``moving_rate``).
 """
 
 from __future__ import annotations
@@ -52,7 +68,7 @@ import numpy as np
 from adaproj_edge.arrays import FloatArray
 from adaproj_edge.geometry.rotations import rotation_vector
 from adaproj_edge.motion.prediction import GyroTrack, PredictionSettings, small_rotation
-from adaproj_edge.motion.rates import GyroBias, LowPass2
+from adaproj_edge.motion.rates import GyroBias, LowPass2, WindowMean
 from adaproj_edge.render.reproject import margin_usage
 
 
@@ -68,6 +84,9 @@ class StabiliserSettings:
         Deliberate turning rate at which the time constant is halfway between the two.
     speed_tau_s : float
         Time constant of each of the two low-passes that tell the deliberate rate.
+    turn_window_s : float
+        Window over which the deliberate rate's mean tells a turn from a tremor
+        (:attr:`Stabiliser.turning`).
     ease_from : float
         Share of the margin in use beyond which the picture is eased back.
     ease_tau_s : float
@@ -84,6 +103,7 @@ class StabiliserSettings:
     tau_moving_s: float = 0.12
     moving_rate: float = 0.04
     speed_tau_s: float = 0.08
+    turn_window_s: float = 0.25
     ease_from: float = 0.5
     ease_tau_s: float = 0.05
     usage_tau_s: float = 0.1
@@ -138,7 +158,10 @@ class Stabiliser:
         self.size = size
         self.track = GyroTrack(s.prediction)
         self._deliberate = LowPass2(s.speed_tau_s)
-        self._bias = GyroBias(s.bias_tau_s, s.still_rate, s.still_hold_s, s.max_bias, s.speed_tau_s)
+        self._turn = WindowMean(s.turn_window_s)
+        self._bias = GyroBias(
+            s.bias_tau_s, s.still_rate, s.still_hold_s, s.max_bias, s.speed_tau_s, smooth=True
+        )
         self.R_s: FloatArray | None = None
         self._last_step_ns: int | None = None
         self._age_s = 0.0  # since the follower started
@@ -157,7 +180,7 @@ class Stabiliser:
             self._bias.reset_stillness()
             return
         dt = (t_ns - last) * 1e-9
-        self._deliberate.update(w - self.track.bias, dt)
+        self._turn.update(self._deliberate.update(w - self.track.bias, dt), dt)
         self._bias.update(w, dt)
         self.track.bias = self._bias.value.copy()
 
@@ -168,6 +191,7 @@ class Stabiliser:
         self._last_step_ns = None
         self._age_s = 0.0
         self._deliberate.reset()
+        self._turn.reset()
         self._bias.reset_stillness()
         self._usage = 0.0
         self._R_calm = None
@@ -176,6 +200,21 @@ class Stabiliser:
     def deliberate_rate(self) -> float:
         """The low-passed turning rate (rad/s), tremor taken out."""
         return float(np.linalg.norm(self._deliberate.value))
+
+    @property
+    def turning_rate(self) -> float:
+        """The deliberate rate's mean over ``turn_window_s`` (rad/s): the rotation it
+        accumulated over that window, divided by it (a tremor's residue averages out)."""
+        return float(np.linalg.norm(self._turn.value))
+
+    @property
+    def turning(self) -> bool:
+        """Whether the device is being turned on purpose, not only trembling: the
+        deliberate rate over ``moving_rate`` now and over the window
+        (:attr:`turning_rate`). The window's mean tells the turn from the tremor; the
+        rate of the moment ends the turn when the hand stops, not a window later."""
+        mr = self.settings.moving_rate
+        return self.turning_rate >= mr and self.deliberate_rate >= mr
 
     @property
     def bias(self) -> FloatArray:

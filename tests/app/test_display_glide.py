@@ -15,6 +15,7 @@ from adaproj_edge.app.telemetry import Telemetry
 from adaproj_edge.geometry.projector import Projector
 from adaproj_edge.hal.display import MemoryDisplay
 from adaproj_edge.hal.imu import ImuSample
+from adaproj_edge.session.hand import HandMotion
 from adaproj_edge.warp.engine import standard_warp
 from adaproj_edge.warp.warpmap import Grid, Warp
 
@@ -78,6 +79,36 @@ def test_a_re_placement_glides_in_unless_the_device_is_turned(
     loop.publish(frame, [], Shown(2, "content-aware", base, "a", 4), t + round(1e9 / 15))
     glided = not np.allclose(loop._glide, np.eye(3))
     assert glided is glides
+
+
+def test_a_re_placement_glides_in_while_a_strong_tremor_lifts_the_deliberate_rate() -> None:
+    """The simulated hand held still at 0.5 degrees RMS of tremor: what the low-pass
+    leaves of its rate goes over ``moving_rate`` now and then. A re-placement published
+    at such a moment (the one above, three margins) was taken for a frame following a
+    deliberate turn and shown at once (at a corner: 188 mm, jitter ratio 0.61); the
+    device is not turned (the stabiliser's ``turning``), so it glides in, and slowly:
+    its time constant was blended towards ``glide_moving_s`` by that rate (0.1-0.17 s
+    for ``glide_s`` 0.3); blended by the turning rate, under half of ``moving_rate``
+    here, it is at least ``glide_moving_s + (glide_s - glide_moving_s) / 1.25``."""
+    loop = _loop()
+    seconds = 3.0
+    t = np.arange(0, seconds, 1 / 416)
+    _, rate = HandMotion(seconds, seed=0, tremor_deg=0.5, hold_after=0).imu_truth(t)
+    moving_rate = loop.settings.stabiliser.moving_rate
+    for k in range(len(t)):
+        t_ns = round(t[k] * 1e9)
+        loop.on_imu(ImuSample(t_ns, t_ns, (0.0, -9.81, 0.0), tuple(rate[k])))
+        if t[k] > 1.0 and loop.stabiliser.deliberate_rate > moving_rate:
+            break
+    assert loop.stabiliser.deliberate_rate > moving_rate  # the rate alone: "moving"
+    p = Projector.default()
+    base = standard_warp(p, (640, 400), Grid())
+    frame = np.zeros((p.height, p.width, 3), np.uint8)
+    loop.publish(frame, [], Shown(1, "content-free", _placed(base, 0.8, 150.0), "a", 1), t_ns)
+    loop.publish(frame, [], Shown(2, "content-free", base, "a", 1), t_ns + 1)
+    assert not np.allclose(loop._glide, np.eye(3))
+    s = loop.settings
+    assert loop._glide_tau_s >= s.glide_moving_s + (s.glide_s - s.glide_moving_s) / 1.25
 
 
 def test_a_re_placement_is_judged_where_the_content_is() -> None:
