@@ -260,7 +260,8 @@ def turned_with_mesh(
     was made upright for the positions ``origin`` (n, 2) and kept since) turned by as
     much as the mesh under the content turned from ``origin`` to ``v``, less
     :data:`TURN_KEPT` (a dead band: the result is continuous in ``v``), and the
-    content placed again at that rotation.
+    content placed again at that rotation. With fewer than :data:`MIN_UNDER` triangles
+    under the content the turn cannot be told, and ``placement`` is kept.
 
     The content-aware alternation keeps its start's rotation of the content while its
     solves turn the mesh under it (a degree on a rolled device before a turned wall).
@@ -270,9 +271,13 @@ def turned_with_mesh(
     c = placement.apply(v)[mesh.tris].mean(axis=1)  # the triangles the content is on
     w, h = content_size
     on = (c[:, 0] >= -0.5) & (c[:, 0] <= w - 0.5) & (c[:, 1] >= -0.5) & (c[:, 1] <= h - 0.5)
-    among = on if int(on.sum()) >= MIN_UNDER else None
+    if int(on.sum()) < MIN_UNDER:
+        # too few triangles under the content to tell how it turned: the whole mesh's
+        # turn is the turn of what the content is not on (a small picture on a real
+        # desk, 3 coarse triangles under it: the rest, a wall, turned it 11.6 deg)
+        return placement
     up_p = np.asarray(up, dtype=np.float64)
-    turn = upright_angle(mesh, v, up_p, among) - upright_angle(mesh, origin, up_p, among)
+    turn = upright_angle(mesh, v, up_p, on) - upright_angle(mesh, origin, up_p, on)
     turn = float(np.angle(np.exp(1j * turn)))
     if abs(turn) <= TURN_KEPT:
         return placement
