@@ -256,15 +256,13 @@ class DisplayLoop:
     def _glide_tau(self) -> float:
         """The glide's time constant for a frame published now: ``glide_s`` held still,
         towards ``glide_moving_s`` as the device is turned on purpose (the stabiliser's
-        turning rate, the deliberate rate's mean over its window, blended as its
-        follower's time constant is: the rate of the moment, lifted by a strong tremor,
-        made held-still glides quick). Turned, frames come every
-        ``moving_interval_s``: a slow glide would never finish, and each new frame would
-        start from the last one's lag (the content's tilt and place behind the device's
-        by a glide's worth after the turn)."""
+        deliberate rate, blended as its follower's time constant is). Turned, frames
+        come every ``moving_interval_s``: a slow glide would never finish, and each new
+        frame would start from the last one's lag (the content's tilt and place behind
+        the device's by a glide's worth after the turn)."""
         s = self.settings
         with self._imu_lock:
-            v = self.stabiliser.turning_rate / self.settings.stabiliser.moving_rate
+            v = self.stabiliser.deliberate_rate / self.settings.stabiliser.moving_rate
         return s.glide_moving_s + (s.glide_s - s.glide_moving_s) / (1.0 + v * v)
 
     def _glide_to(self, new: Shown, t_ns: int) -> FloatArray:

@@ -86,10 +86,7 @@ def test_a_re_placement_glides_in_while_a_strong_tremor_lifts_the_deliberate_rat
     leaves of its rate goes over ``moving_rate`` now and then. A re-placement published
     at such a moment (the one above, three margins) was taken for a frame following a
     deliberate turn and shown at once (at a corner: 188 mm, jitter ratio 0.61); the
-    device is not turned (the stabiliser's ``turning``), so it glides in, and slowly:
-    its time constant was blended towards ``glide_moving_s`` by that rate (0.1-0.17 s
-    for ``glide_s`` 0.3); blended by the turning rate, under half of ``moving_rate``
-    here, it is at least ``glide_moving_s + (glide_s - glide_moving_s) / 1.25``."""
+    device is not turned (the stabiliser's ``turning``), so it glides in."""
     loop = _loop()
     seconds = 3.0
     t = np.arange(0, seconds, 1 / 416)
@@ -107,8 +104,6 @@ def test_a_re_placement_glides_in_while_a_strong_tremor_lifts_the_deliberate_rat
     loop.publish(frame, [], Shown(1, "content-free", _placed(base, 0.8, 150.0), "a", 1), t_ns)
     loop.publish(frame, [], Shown(2, "content-free", base, "a", 1), t_ns + 1)
     assert not np.allclose(loop._glide, np.eye(3))
-    s = loop.settings
-    assert loop._glide_tau_s >= s.glide_moving_s + (s.glide_s - s.glide_moving_s) / 1.25
 
 
 def test_a_re_placement_is_judged_where_the_content_is() -> None:
