@@ -76,7 +76,7 @@ def surfaces_agree(
     sensor: SensorModel,
     mean_sigmas: float = 3.0,
     rms_sigmas: float = 1.0,
-    min_overlap: float = 0.9,
+    min_overlap: float = 0.97,
     sway_m: float = 0.01,
 ) -> bool:
     """Whether two lattice depths (R, C) are estimates of the same surface, judged
@@ -103,7 +103,9 @@ def surfaces_agree(
 
     Nodes known in both must be at least ``min_overlap`` of the larger valid set (the
     holes a sensor leaves come and go with its noise: a hole at the frame's border is
-    filled in one estimate and not the next, 5 % of a lattice). Lattices of different
+    filled in one estimate and not the next, up to 5 % of a lattice; a warp served
+    across such a hole is replaced by the next fresh solve, a re-placement the hand
+    sees). Lattices of different
     shapes never agree; a fine lattice is compared at about 21x21 of its nodes (as
     :func:`surfaces_match`). The lattice's depth in frame P stands for the sensor's
     (the two centres are centimetres apart). A surface turned in frame P is told by
