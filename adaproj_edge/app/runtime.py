@@ -519,9 +519,12 @@ class Runtime:
                 self._fault("warp", f"no warp for this surface: {e}")
                 return
             cmap = self._content_map()
-            if cmap is not None:
+            if cmap is not None and not self.plain and self.item.settings.mode == "content":
                 with self.telemetry.times.timer("refine_prep"):
-                    entry.prepare(cmap, self.up())
+                    try:
+                        entry.prepare(cmap, self.up())
+                    except AdaprojError as e:  # made ahead only: the refinement meets it
+                        log.info("nothing made ahead for the refinement: %s", e)
 
     def _pose(self, surface: Surface, frames: int, refine: bool) -> tuple[PoseEntry, bool]:
         """The pose entry of ``surface`` (averaged over ``frames`` depth frames) and

@@ -6,6 +6,7 @@ import json
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import cv2
@@ -16,7 +17,7 @@ from adaproj_edge.app.content import Item, builtin_item, mask_content_map
 from adaproj_edge.app.inputs import SourceFault, feed
 from adaproj_edge.app.runtime import Runtime, State
 from adaproj_edge.app.settings import AppSettings
-from adaproj_edge.errors import ImageError
+from adaproj_edge.errors import ImageError, WarpError
 from adaproj_edge.geometry.calibration import Calibration
 from adaproj_edge.hal.button import ButtonEvent
 from adaproj_edge.hal.clock import VirtualClock
@@ -321,3 +322,31 @@ def test_a_last_warp_that_does_not_fit_is_ignored_at_boot(
     rt.boot()
     assert rt.state == State.IDLE and "last-warp" not in kinds
     assert any("ignoring the last warp" in r.getMessage() for r in caplog.records)
+
+
+def test_what_is_made_ahead_of_a_refinement_may_fail_without_a_fault(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A settled device makes its first refinement's conformal pieces in the frame that
+    shows nothing (``PoseEntry.prepare``); that is only made ahead: a failure there is
+    logged, raised to no one (the refinement makes them, or meets the failure, itself)."""
+    rt, _, _ = _runtime()
+    calls: list[object] = []
+
+    class Entry:
+        def prepare(self, content_map: object, up: object) -> None:
+            calls.append(content_map)
+            raise WarpError("made ahead to fail")
+
+    monkeypatch.setattr(rt.surfaces, "prepared", lambda est: None)
+    monkeypatch.setattr(rt, "_pose", lambda surface, frames, refine: (Entry(), False))
+    monkeypatch.setattr(rt, "_content_map", lambda: object())
+    rt.plain = False
+    assert rt.item.settings.mode == "content"
+    est = SimpleNamespace(frames=3)  # an averaged estimate, as far as _prepare reads it
+    with caplog.at_level("INFO", logger="adaproj_edge.app.runtime"):
+        rt._prepare(est)  # type: ignore[arg-type]
+    assert len(calls) == 1 and "made ahead to fail" in caplog.text
+    rt.plain = True  # nothing refines: nothing is made ahead
+    rt._prepare(est)  # type: ignore[arg-type]
+    assert len(calls) == 1
